@@ -1,0 +1,1 @@
+"""Errors, input checks, RNG and timing helpers shared by every treeform folder."""

@@ -1,0 +1,50 @@
+"""Input checks that raise :class:`~treeform._shared.errors.InputError` naming the argument."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+
+
+def check_array(value, name: str, *, ndim=None, dtype_kind=None, shape=None, min_size: int = 0) -> np.ndarray:
+    """Return ``value`` as an ndarray after checking its rank, dtype kind and shape.
+
+    ``shape`` may hold ``None`` for free axes, e.g. ``(None, 3)``.
+    """
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover - defensive
+        raise InputError(f"{name}: cannot be converted to an array ({exc})") from None
+    if ndim is not None:
+        ndims = (ndim,) if isinstance(ndim, int) else tuple(ndim)
+        if arr.ndim not in ndims:
+            raise InputError(f"{name}: expected {ndim}-D array, got shape {arr.shape}")
+    if dtype_kind is not None and arr.dtype.kind not in dtype_kind:
+        raise InputError(f"{name}: expected dtype kind in {dtype_kind!r}, got {arr.dtype}")
+    if shape is not None:
+        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+            raise InputError(f"{name}: expected shape {shape}, got {arr.shape}")
+    if arr.size < min_size:
+        raise InputError(f"{name}: expected at least {min_size} elements, got {arr.size}")
+    if arr.dtype.kind == "f" and arr.size and not np.all(np.isfinite(arr)):
+        raise InputError(f"{name}: contains NaN or infinite values")
+    return arr
+
+
+def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float after checking it is positive (or >= 0)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {value!r}")
+    return v
+
+
+def check_choice(value, name: str, choices) -> str:
+    """Return ``value`` after checking it is one of ``choices``."""
+    if value not in choices:
+        raise InputError(f"{name}: expected one of {', '.join(map(str, choices))}; got {value!r}")
+    return value
