@@ -1,0 +1,112 @@
+"""treeform benchmarks (medians; never asserted). Run: `make bench` or `python benchmarks/run.py [--repeat N]`.
+
+Prints a markdown table and writes benchmarks/results.json with the machine description.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+
+
+def median_time(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times
+
+
+def bench_reconstruct(repeat):
+    from treeform.methods.envelope.pipeline import reconstruct
+
+    stages = {}
+    out = Path(tempfile.mkdtemp(prefix="treeform-bench-"))
+    reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, GL context, numba-free caches
+    totals = []
+    for i in range(repeat):
+        t0 = time.perf_counter()
+        res = reconstruct(SAMPLE, out=out / f"r{i}")
+        totals.append(time.perf_counter() - t0)
+        for k, v in res.metrics["timings"].items():
+            stages.setdefault(k, []).append(v)
+    return statistics.median(totals), {k: statistics.median(v) for k, v in stages.items()}, res.metrics
+
+
+def bench_cold_cli(repeat):
+    exe = Path(sys.executable).parent / "treeform"
+    out = Path(tempfile.mkdtemp(prefix="treeform-cli-"))
+    t_version, _ = median_time(lambda: subprocess.run([str(exe), "--version"], check=True, capture_output=True), repeat)
+    t_cli, _ = median_time(lambda: subprocess.run([str(exe), "reconstruct", str(SAMPLE), "--out", str(out / "x")],
+                                                  check=True, capture_output=True), max(1, repeat // 2))
+    return t_version, t_cli
+
+
+def bench_space_colonization(repeat):
+    from treeform.growth import blue_noise_points, space_colonization
+
+    inside = lambda p: np.linalg.norm((p - [0, 6, 0]) / [3, 2.5, 3], axis=1) < 1  # noqa: E731
+    att = blue_noise_points(inside, ([-3, 3.5, -3], [3, 8.5, 3]), 10_000, seed=0)
+    trunk = np.stack([np.zeros(10), np.linspace(0, 3.6, 10), np.zeros(10)], 1)
+    r_mean = 2.8
+    run = lambda: space_colonization(att, trunk, influence_radius=0.5 * r_mean, kill_distance=0.1 * r_mean,  # noqa: E731
+                                     segment_length=0.04 * r_mean)
+    t, _ = median_time(run, repeat)
+    t_sample, _ = median_time(lambda: blue_noise_points(inside, ([-3, 3.5, -3], [3, 8.5, 3]), 10_000, seed=0), repeat)
+    return t, t_sample, len(run().positions)
+
+
+def machine():
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeat", type=int, default=7)
+    args = ap.parse_args()
+    rows = []
+    total, stages, metrics = bench_reconstruct(args.repeat)
+    rows.append(("reconstruct, 450x600 photo, in-process (median)", total))
+    for k, v in stages.items():
+        rows.append((f"  stage {k}", v))
+    t_sc, t_bn, nodes = bench_space_colonization(args.repeat)
+    rows.append((f"space colonization, 10,000 attractors ({nodes} nodes)", t_sc))
+    rows.append(("blue-noise sampling, 10,000 attractors", t_bn))
+    t_version, t_cli = bench_cold_cli(max(3, args.repeat // 2))
+    rows.append(("`treeform --version` (interpreter start + import)", t_version))
+    rows.append(("`treeform reconstruct` as a fresh process (includes start, imports, GL context)", t_cli))
+    print(f"machine: {machine()}\n")
+    print("| benchmark | median (s) |\n|---|---|")
+    for name, t in rows:
+        print(f"| {name} | {t:.3f} |")
+    print(f"\nreprojection error {100 * metrics['reprojection_error']:.1f} %, IoU {metrics['iou']:.3f}, "
+          f"triangles {metrics['triangles']}")
+    (ROOT / "benchmarks" / "results.json").write_text(json.dumps(
+        {"machine": machine(), "command": "make bench", "repeat": args.repeat,
+         "results": {name.strip(): round(t, 4) for name, t in rows}}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""The ``treeform`` command line (typer); the only place that draws progress bars."""

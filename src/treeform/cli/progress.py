@@ -1,0 +1,52 @@
+"""Rich progress display driven by the library's stage callbacks."""
+
+from __future__ import annotations
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from treeform.methods.envelope.pipeline import STAGES
+
+_err = Console(stderr=True)
+_out = Console()
+
+
+class StageProgress:
+    """A progress bar over the pipeline stages, with each finished stage's time."""
+
+    def __init__(self, stages=STAGES):
+        self.stages = stages
+        self.progress = Progress(SpinnerColumn(), TextColumn("[bold]{task.description}"), BarColumn(),
+                                 TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
+                                 console=_err, transient=False)
+        self.task = None
+
+    def __enter__(self):
+        self.progress.__enter__()
+        self.task = self.progress.add_task("starting", total=len(self.stages))
+        return self
+
+    def __exit__(self, *exc):
+        return self.progress.__exit__(*exc)
+
+    def callback(self, stage: str, event: str, seconds: float) -> None:
+        if event == "start":
+            self.progress.update(self.task, description=stage)
+        else:
+            self.progress.advance(self.task)
+            self.progress.console.print(f"  {stage:<11} {seconds:6.2f} s", highlight=False)
+
+
+def print_summary(res) -> None:
+    """One table of the key metrics and the written files."""
+    m = res.metrics
+    t = Table(show_header=False, box=None)
+    t.add_row("reprojection error", f"{100 * m['reprojection_error']:.1f} %")
+    t.add_row("IoU", f"{m['iou']:.3f}")
+    t.add_row("depth / width", f"{m['depth_width_ratio']:.2f}")
+    t.add_row("nodes / leaves / triangles", f"{m['nodes']} / {m['leaves']} / {m['triangles']}")
+    t.add_row("total", f"{m['total_seconds']:.2f} s")
+    for name, path in sorted(res.files.items()):
+        t.add_row(name, str(path))
+    _out.print(t)

@@ -1,0 +1,26 @@
+"""Skeleton and foliage to triangle meshes: generalized-cylinder branches, leaf cards, LODs.
+
+- :func:`branch_mesh` — one smooth tube per branch chain (parallel-transport frames).
+- :func:`leaf_cards`, :func:`leaf_texture` — alpha-masked leaf quads and their texture.
+- :func:`tree_mesh`, :data:`LOD_PRESETS` — both parts under a triangle budget.
+"""
+
+from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage
+from treeform.geometry.lod import LOD_PRESETS, plan_lod, tree_mesh
+from treeform.geometry.tubes import MIN_RING_RADIUS, bark_material, bark_texture, branch_mesh, tube_triangle_count
+
+__all__ = [
+    "CLUSTER_COVERAGE",
+    "LOD_PRESETS",
+    "MIN_RING_RADIUS",
+    "bark_material",
+    "bark_texture",
+    "branch_mesh",
+    "leaf_cards",
+    "leaf_material",
+    "leaf_texture",
+    "plan_lod",
+    "texture_coverage",
+    "tree_mesh",
+    "tube_triangle_count",
+]

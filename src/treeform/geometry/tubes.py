@@ -1,0 +1,427 @@
+"""Branch geometry: a skeleton as generalized cylinders (one smooth tube per branch chain).
+
+Every chain of :meth:`TreeSkeleton.chains` becomes one tube with a ring of vertices at each
+node. Rings are oriented by the average tangent of the two adjacent segments (a mitre, so
+consecutive segments join without cracks) and framed by discrete parallel transport
+(rotation-minimizing frames, Bishop 1975 / Wang et al. 2008), so tubes do not twist. A side
+chain begins at its parent node, i.e. inside the parent tube, so branch joins are closed.
+Tips end in a short cone, the root in a flat fan.
+
+Everything is vectorized over all rings of all chains at once; the only sequential step, the
+accumulation of frame rotations along a chain, is a segmented parallel prefix scan over
+quaternions (``log2(longest chain)`` vectorized passes).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from treeform._shared.checks import check_positive
+from treeform._shared.errors import InputError
+from treeform._shared.rng import as_rng
+from treeform.structures.mesh import Material, MeshPart
+from treeform.structures.skeleton import TreeSkeleton
+
+__all__ = ["MIN_RING_RADIUS", "bark_material", "bark_texture", "branch_mesh", "tube_triangle_count"]
+
+MIN_RING_RADIUS = 1e-4
+"""Rings thinner than this (metres) are widened to it, so no ring collapses to a point."""
+
+_EPS = 1e-12
+
+
+# --------------------------------------------------------------------------- texture
+def _periodic_noise(rng: np.random.Generator, h: int, w: int, sigma_y: float, sigma_x: float) -> np.ndarray:
+    """Tileable Gaussian-filtered noise, normalised to zero mean and unit std. Shape (h, w)."""
+    fy = np.fft.fftfreq(h)[:, None] * h
+    fx = np.fft.rfftfreq(w)[None, :] * w
+    spec = np.fft.rfft2(rng.standard_normal((h, w)))
+    spec *= np.exp(-0.5 * ((fy / sigma_y) ** 2 + (fx / sigma_x) ** 2))
+    n = np.fft.irfft2(spec, s=(h, w))
+    n -= n.mean()
+    return n / (n.std() + _EPS)
+
+
+def bark_texture(size: int = 256, *, seed=0) -> np.ndarray:
+    """A procedural, tileable bark texture: brown-grey plates split by vertical fissures.
+
+    The texture's vertical axis (rows) runs along the branch (UV ``v``), so the fissures
+    follow the grain. It tiles in both directions (built from periodic FFT noise).
+
+    Parameters
+    ----------
+    size : int
+        Edge length in texels (>= 8).
+    seed : int or numpy.random.Generator
+        Randomness; same seed -> identical texture.
+
+    Returns
+    -------
+    ndarray, shape (size, size, 4), uint8
+        sRGB colour with alpha 255.
+
+    Examples
+    --------
+    >>> t = bark_texture(32)
+    >>> t.shape, t.dtype, int(t[..., 3].min())
+    ((32, 32, 4), dtype('uint8'), 255)
+    """
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 8:
+        raise InputError(f"size: expected an integer >= 8, got {size!r}")
+    size = int(size)
+    rng = as_rng(seed)
+    h = w = size
+    # Fissures: the zero set of strongly anisotropic noise (long along the grain, short
+    # across it) forms a network of cracks that run along the branch, split and rejoin.
+    n = _periodic_noise(rng, h, w, sigma_y=1.0, sigma_x=9.0)
+    n = n + 0.3 * _periodic_noise(rng, h, w, sigma_y=2.0, sigma_x=18.0)
+    width = np.clip(0.3 * (1.0 + 0.35 * _periodic_noise(rng, h, w, sigma_y=4.0, sigma_x=4.0)), 0.03, None)
+    a = np.abs(n)
+    fissure = 1.0 / (1.0 + np.exp((a - width) / 0.04))  # 1 in a crack, 0 on the plates
+    relief = np.tanh(a / 0.6)  # plates bulge between the cracks
+    plates = _periodic_noise(rng, h, w, sigma_y=5.0, sigma_x=8.0)
+    grain = _periodic_noise(rng, h, w, sigma_y=25.0, sigma_x=110.0)
+    light = np.clip(0.3 + 0.2 * np.tanh(0.8 * plates) + 0.45 * relief, 0.0, 1.0)
+    plate_dark = np.array([0.33, 0.28, 0.24])
+    plate_light = np.array([0.60, 0.56, 0.51])  # greyer highlights
+    fissure_col = np.array([0.13, 0.10, 0.08])
+    col = plate_dark + (plate_light - plate_dark) * light[..., None]
+    col *= (1.0 + 0.07 * grain)[..., None]
+    col = col * (1.0 - fissure[..., None]) + fissure_col * fissure[..., None]
+    out = np.empty((size, size, 4), np.uint8)
+    out[..., :3] = np.clip(np.rint(col * 255.0), 0, 255).astype(np.uint8)
+    out[..., 3] = 255
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def _default_bark(size: int, seed: int) -> np.ndarray:
+    t = bark_texture(size, seed=seed)
+    t.flags.writeable = False
+    return t
+
+
+def bark_material(texture=None) -> Material:
+    """The ``"bark"`` material: opaque, the procedural bark texture unless one is given."""
+    if texture is None:
+        texture = _default_bark(256, 0).copy()
+    else:
+        texture = np.asarray(texture)
+        if texture.ndim != 3 or texture.shape[2] != 4 or texture.dtype != np.uint8:
+            raise InputError(f"bark_texture: expected an (H, W, 4) uint8 array, got {texture.shape} {texture.dtype}")
+    return Material(name="bark", base_color=(1.0, 1.0, 1.0, 1.0), texture=texture, alpha_mode="OPAQUE",
+                    alpha_cutoff=0.5, double_sided=False, roughness=0.95, metallic=0.0)
+
+
+# --------------------------------------------------------------------------- quaternions
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (..., 4) quaternions stored as (w, x, y, z)."""
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=-1)
+
+
+def _qrotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate (..., 3) vectors ``v`` by unit quaternions ``q`` (..., 4)."""
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _any_perpendicular(t: np.ndarray) -> np.ndarray:
+    """(K, 3) unit vectors perpendicular to the unit vectors ``t`` (K, 3)."""
+    ref = np.zeros_like(t)
+    use_x = np.abs(t[:, 0]) < 0.9
+    ref[use_x, 0] = 1.0
+    ref[~use_x, 2] = 1.0
+    p = ref - np.sum(ref * t, axis=1, keepdims=True) * t
+    return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K, 4) shortest-arc unit quaternions taking unit vectors ``a`` onto ``b``."""
+    d = np.sum(a * b, axis=1)
+    q = np.empty((len(a), 4))
+    q[:, 0] = 1.0 + d
+    q[:, 1:] = np.cross(a, b)
+    flip = q[:, 0] < 1e-9  # (anti)parallel reversal: 180 degrees about any perpendicular axis
+    if np.any(flip):
+        q[flip, 0] = 0.0
+        q[flip, 1:] = _any_perpendicular(a[flip])
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+# --------------------------------------------------------------------------- chains
+def _chain_measure(skeleton: TreeSkeleton, chains: list) -> np.ndarray:
+    """(C,) thickness of each chain: the largest radius of its own nodes (not the parent node)."""
+    if not chains:
+        return np.zeros(0)
+    lens = np.fromiter((len(c) for c in chains), np.int64, len(chains))
+    flat = np.concatenate(chains)
+    start = np.cumsum(lens) - lens
+    own = np.ones(len(flat), bool)
+    own[start[1:]] = lens[1:] < 2  # a side chain's first node belongs to its parent
+    r = np.where(own, skeleton.radius[flat], -np.inf)
+    return np.maximum.reduceat(r, start)
+
+
+def tube_triangle_count(chain_lengths, radial_segments: int, *, root_flags=None, cap_starts: bool = False) -> int:
+    """Triangles :func:`branch_mesh` emits for chains of the given node counts.
+
+    Per chain of ``R >= 2`` rings: ``2·S·(R-1)`` side triangles, ``S`` for the tip cone and
+    ``S`` for a start fan (the root chain, or every chain with ``cap_starts``); 0 if ``R < 2``.
+
+    Parameters
+    ----------
+    chain_lengths : array_like of int, shape (C,)
+    radial_segments : int
+        ``S``.
+    root_flags : array_like of bool, shape (C,), optional
+        Which chains start at the root (default: only the first).
+    cap_starts : bool
+    """
+    lens = np.asarray(chain_lengths, np.int64).reshape(-1)
+    if root_flags is None:
+        root_flags = np.arange(len(lens)) == 0
+    capped = np.ones(len(lens), bool) if cap_starts else np.asarray(root_flags, bool)
+    units = np.where(lens >= 2, 2 * (lens - 1) + 1 + capped, 0)
+    return int(radial_segments) * int(units.sum())
+
+
+def _check_segments(radial_segments) -> int:
+    if isinstance(radial_segments, bool) or not isinstance(radial_segments, (int, np.integer)) or radial_segments < 3:
+        raise InputError(f"radial_segments: expected an integer >= 3, got {radial_segments!r}")
+    return int(radial_segments)
+
+
+# --------------------------------------------------------------------------- mesh
+def branch_mesh(skeleton: TreeSkeleton, *, radial_segments: int = 8, min_radius: float = 0.0,
+                bark_texture=None, cap_starts: bool = False) -> MeshPart:
+    """Mesh the branches of a skeleton as smoothly joined generalized cylinders.
+
+    One tube per chain of ``skeleton.chains()`` with a ring of ``radial_segments + 1``
+    vertices at every node (the seam vertex is duplicated so ``u`` runs 0..1). The ring
+    plane is perpendicular to the average tangent of the adjacent segments; ring frames are
+    parallel-transported along the chain (rotation-minimizing, no twist). A side chain starts
+    at its parent node with radius ``min(r_parent, r_child)``, inside the parent tube, so joins
+    are closed. The tip of each chain gets a short cone (apex ``r/2`` beyond the tip), the
+    root a flat fan. Ring radius is ``max(skeleton.radius, MIN_RING_RADIUS)``.
+
+    UVs: ``u`` around the ring in [0, 1]; ``v`` along the chain, the integral of
+    ``ds / (2π·r)`` (arc length in metres over the circumference), so a square texture tile
+    is not stretched. Vertex normals are radial, tilted by the taper ``dr/ds``.
+
+    Faces are grouped by chain in chain order (chains with < 2 nodes emit nothing); the
+    triangle count is :func:`tube_triangle_count`. A single-node skeleton gives an empty part.
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+        N nodes.
+    radial_segments : int
+        Sides per ring ``S`` (>= 3).
+    min_radius : float
+        Chains whose own nodes are all thinner than this (metres) are skipped.
+    bark_texture : ndarray, shape (H, W, 4), uint8, optional
+        Base-colour texture; default the procedural :func:`bark_texture` (256², seed 0).
+    cap_starts : bool
+        Also close the start of side chains with a fan (hidden inside the parent; makes every
+        tube watertight on its own at the cost of ``S`` triangles per chain).
+
+    Returns
+    -------
+    MeshPart
+        Named ``"bark"``: positions/normals (V, 3), uvs (V, 2), white colours (V, 4),
+        indices (F, 3), material ``"bark"`` (OPAQUE, textured).
+
+    Examples
+    --------
+    >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0.]]), np.array([-1, 0]), np.array([0.1, 0.05]))
+    >>> branch_mesh(s, radial_segments=6).n_triangles  # 2·6 sides + 6 cone + 6 root fan
+    24
+    """
+    if not isinstance(skeleton, TreeSkeleton):
+        raise InputError(f"skeleton: expected a TreeSkeleton, got {type(skeleton).__name__}")
+    segs = _check_segments(radial_segments)
+    min_radius = check_positive(min_radius, "min_radius", allow_zero=True)
+    chains = skeleton.chains()
+    root_flags = np.arange(len(chains)) == 0
+    if min_radius > 0 and chains:
+        keep = _chain_measure(skeleton, chains) >= min_radius
+        chains = [c for c, k in zip(chains, keep) if k]
+        root_flags = root_flags[keep]
+    return _tubes(skeleton, chains, root_flags, segs, cap_starts=cap_starts, material=bark_material(bark_texture))
+
+
+def _empty_part(material: Material, name: str) -> MeshPart:
+    z3 = np.zeros((0, 3), np.float32)
+    return MeshPart(z3, z3, np.zeros((0, 2), np.float32), np.zeros((0, 4), np.float32),
+                    np.zeros((0, 3), np.uint32), material, name)
+
+
+def _tubes(skeleton: TreeSkeleton, chains: list, root_flags: np.ndarray, segs: int, *,
+           cap_starts: bool, material: Material) -> MeshPart:
+    """Mesh the given chains (list of node-index arrays); ``root_flags`` marks root chains."""
+    if chains:
+        lens_all = np.fromiter((len(c) for c in chains), np.int64, len(chains))
+        use = lens_all >= 2
+        chains = [c for c, u in zip(chains, use) if u]
+        root_flags = np.asarray(root_flags, bool)[use]
+    if not chains:
+        return _empty_part(material, "bark")
+
+    lens = np.fromiter((len(c) for c in chains), np.int64, len(chains))
+    nodes = np.concatenate(chains)
+    n_rings = len(nodes)
+    n_chains = len(chains)
+    start = np.cumsum(lens) - lens
+    chain_of = np.repeat(np.arange(n_chains), lens)
+    pos_in = np.arange(n_rings) - start[chain_of]
+    first = pos_in == 0
+    last = pos_in == (lens - 1)[chain_of]
+
+    P = skeleton.positions[nodes]
+    # ---- ring radii: side chains start (at the parent node) with the child's radius
+    r = np.maximum(skeleton.radius[nodes], MIN_RING_RADIUS)
+    side_first = start[~root_flags]
+    r[side_first] = np.minimum(r[side_first], r[side_first + 1])
+
+    # ---- segment directions D[k] (k -> k+1), filled across zero-length segments
+    seg = np.zeros((n_rings, 3))
+    seg[:-1] = P[1:] - P[:-1]
+    seg_len = np.linalg.norm(seg, axis=1)
+    has_seg = ~last
+    valid = has_seg & (seg_len > 1e-9)
+    D = np.zeros((n_rings, 3))
+    D[valid] = seg[valid] / seg_len[valid, None]
+    if not np.all(valid[has_seg]):
+        idx = np.arange(n_rings)
+        fwd = np.maximum.accumulate(np.where(valid, idx, -1))
+        bwd = np.minimum.accumulate(np.where(valid, idx, n_rings)[::-1])[::-1]
+        ok_f = (fwd >= 0) & (chain_of[np.clip(fwd, 0, None)] == chain_of)
+        ok_b = (bwd < n_rings) & (chain_of[np.clip(bwd, None, n_rings - 1)] == chain_of)
+        src = np.where(ok_f, fwd, np.where(ok_b, bwd, -1))
+        fill = has_seg & ~valid
+        D[fill & (src >= 0)] = D[src[fill & (src >= 0)]]
+        D[fill & (src < 0)] = (0.0, 1.0, 0.0)
+
+    # ---- ring tangents: mean of the adjacent segment directions
+    D_prev = np.zeros_like(D)
+    D_prev[1:] = D[:-1]
+    T = np.where(first[:, None], D, np.where(last[:, None], D_prev, D + D_prev))
+    tn = np.linalg.norm(T, axis=1)
+    bad = tn < 1e-6  # a reversal: fall back to the outgoing direction
+    T[bad] = D[bad]
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+
+    # ---- parallel transport: minimal rotation between consecutive tangents, scanned per chain
+    Q = np.zeros((n_rings, 4))
+    Q[:, 0] = 1.0
+    nf = ~first
+    Q[nf] = _min_rotation(T[np.flatnonzero(nf) - 1], T[nf])
+    step = 1
+    max_len = int(lens.max())
+    while step < max_len:
+        m = np.flatnonzero(pos_in >= step)
+        Qn = Q.copy()
+        Qn[m] = _qmul(Q[m], Q[m - step])  # later rotations on the left
+        Qn[m] /= np.linalg.norm(Qn[m], axis=1, keepdims=True)
+        Q = Qn
+        step *= 2
+    U0 = _any_perpendicular(T[start])
+    U = _qrotate(Q, U0[chain_of])
+    U -= np.sum(U * T, axis=1, keepdims=True) * T
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    V = np.cross(T, U)
+
+    # ---- taper slope dr/ds per ring (for normals) and v coordinate
+    seg_r_mean = np.zeros(n_rings)
+    seg_r_mean[:-1] = 0.5 * (r[:-1] + r[1:])
+    slope_seg = np.zeros(n_rings)
+    slope_seg[:-1] = (r[1:] - r[:-1]) / np.maximum(seg_len[:-1], 1e-9)
+    slope_seg = np.where(valid, np.clip(slope_seg, -1.0, 1.0), 0.0)
+    slope_prev = np.zeros(n_rings)
+    slope_prev[1:] = slope_seg[:-1]
+    slope = np.where(first, slope_seg, np.where(last, slope_prev, 0.5 * (slope_seg + slope_prev)))
+    dv = np.where(has_seg, seg_len / (2.0 * np.pi * np.maximum(seg_r_mean, MIN_RING_RADIUS)), 0.0)
+    cum = np.concatenate([[0.0], np.cumsum(dv[:-1])])  # v at ring k = sum of dv over rings < k
+    vcoord = cum - cum[start][chain_of]
+
+    # ---- ring vertices (R, S+1)
+    theta = 2.0 * np.pi * np.arange(segs + 1) / segs
+    cs, sn = np.cos(theta), np.sin(theta)
+    cs[-1], sn[-1] = cs[0], sn[0]  # the seam vertex repeats the first one exactly
+    radial = cs[None, :, None] * U[:, None, :] + sn[None, :, None] * V[:, None, :]  # (R, S+1, 3)
+    ring_pos = P[:, None, :] + r[:, None, None] * radial
+    ring_nrm = (radial - slope[:, None, None] * T[:, None, :]) / np.sqrt(1.0 + slope**2)[:, None, None]
+    ring_uv = np.empty((n_rings, segs + 1, 2))
+    ring_uv[..., 0] = (np.arange(segs + 1) / segs)[None, :]
+    ring_uv[..., 1] = vcoord[:, None]
+    nv_ring = n_rings * (segs + 1)
+
+    # ---- tip cones: one apex per chain
+    tips = start + lens - 1
+    h = 0.5 * r[tips]
+    apex_pos = P[tips] + h[:, None] * T[tips]
+    apex_nrm = T[tips]
+    apex_uv = np.stack([np.full(n_chains, 0.5), vcoord[tips] + h / (2.0 * np.pi * r[tips])], axis=1)
+    apex_base = nv_ring
+
+    # ---- start fans (root chains, or all chains): duplicated ring + centre, flat normal -T
+    capped = np.ones(n_chains, bool) if cap_starts else root_flags.copy()
+    cap_chain = np.flatnonzero(capped)
+    cap_ring = start[cap_chain]
+    n_caps = len(cap_chain)
+    cap_base = apex_base + n_chains
+    cap_pos = np.concatenate([ring_pos[cap_ring], P[cap_ring][:, None, :]], axis=1)  # (K, S+2, 3)
+    cap_nrm = np.broadcast_to(-T[cap_ring][:, None, :], cap_pos.shape)
+    cap_uv = np.empty((n_caps, segs + 2, 2))
+    cap_uv[:, :-1, 0] = 0.5 + 0.5 * cs[None, :]
+    cap_uv[:, :-1, 1] = 0.5 + 0.5 * sn[None, :]
+    cap_uv[:, -1] = 0.5
+
+    positions = np.concatenate([ring_pos.reshape(-1, 3), apex_pos, cap_pos.reshape(-1, 3)])
+    normals = np.concatenate([ring_nrm.reshape(-1, 3), apex_nrm, cap_nrm.reshape(-1, 3)])
+    uvs = np.concatenate([ring_uv.reshape(-1, 2), apex_uv, cap_uv.reshape(-1, 2)])
+
+    # ---- faces, laid out ring by ring so they are grouped by chain:
+    #      [start fan S]? [side 2S] on every non-last ring, [cone S] on the last ring
+    j = np.arange(segs)
+    ring_has_cap = np.zeros(n_rings, bool)
+    ring_has_cap[cap_ring] = True
+    per_ring = np.where(last, segs, 2 * segs) + segs * ring_has_cap
+    off = np.cumsum(per_ring) - per_ring
+    faces = np.empty((int(per_ring.sum()), 3), np.int64)
+
+    cap_off = off[cap_ring]
+    centre = cap_base + np.arange(n_caps) * (segs + 2) + segs + 1
+    a = (cap_base + np.arange(n_caps) * (segs + 2))[:, None] + j[None, :]
+    fan = np.stack([np.broadcast_to(centre[:, None], a.shape), a + 1, a], axis=-1)  # faces -T
+    faces[(cap_off[:, None] + j[None, :]).reshape(-1)] = fan.reshape(-1, 3)
+
+    body = np.flatnonzero(has_seg)
+    b_off = off[body] + segs * ring_has_cap[body]
+    a = (body * (segs + 1))[:, None] + j[None, :]
+    b = a + 1
+    c = a + (segs + 1)
+    d = c + 1
+    quads = np.stack([np.stack([a, b, c], -1), np.stack([b, d, c], -1)], axis=2)  # (B, S, 2, 3)
+    faces[(b_off[:, None] + np.arange(2 * segs)[None, :]).reshape(-1)] = quads.reshape(-1, 3)
+
+    a = (tips * (segs + 1))[:, None] + j[None, :]
+    apex = (apex_base + np.arange(n_chains))[:, None]
+    cone = np.stack([a, a + 1, np.broadcast_to(apex, a.shape)], axis=-1)
+    t_off = off[tips] + segs * ring_has_cap[tips]
+    faces[(t_off[:, None] + j[None, :]).reshape(-1)] = cone.reshape(-1, 3)
+
+    colors = np.ones((len(positions), 4), np.float32)
+    return MeshPart(positions.astype(np.float32), normals.astype(np.float32), uvs.astype(np.float32),
+                    colors, faces.astype(np.uint32), material, "bark")

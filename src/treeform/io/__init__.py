@@ -1,0 +1,28 @@
+"""Readers and writers: GLB (glTF 2.0), OBJ + MTL, skeleton PLY/JSON, photos, masks and PNGs.
+
+``save(obj, path)`` picks the writer by extension; every writer is atomic (temporary file,
+then ``os.replace``) so a failure never leaves a partial output file. Pillow is imported
+only when an image is read or written.
+"""
+
+from treeform.io.gltf import read_glb, read_glb_counts, write_glb
+from treeform.io.images import MAX_PIXELS, read_mask, read_photo, write_png
+from treeform.io.obj import write_obj
+from treeform.io.ply import read_skeleton_ply, write_skeleton_ply
+from treeform.io.registry import known_extensions, register_writer, save
+
+__all__ = [
+    "MAX_PIXELS",
+    "known_extensions",
+    "read_glb",
+    "read_glb_counts",
+    "read_mask",
+    "read_photo",
+    "read_skeleton_ply",
+    "register_writer",
+    "save",
+    "write_glb",
+    "write_obj",
+    "write_png",
+    "write_skeleton_ply",
+]

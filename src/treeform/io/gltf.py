@@ -1,0 +1,358 @@
+"""glTF 2.0 binary (GLB) writer and a small reader, with numpy + json + struct only.
+
+The layout follows the glTF 2.0 specification (Khronos, §4.4 "GLB File Format
+Specification"): a 12-byte header, a JSON chunk padded with spaces and a BIN chunk padded
+with zeros, every chunk and every bufferView aligned to 4 bytes.
+
+Conventions: metres, right-handed, +Y up -- glTF's own, so no axis flip is applied.
+Texture coordinates are taken as glTF stores them: (0, 0) is the top-left corner of the
+texture (row 0 of ``Material.texture``), ``v`` grows downwards.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform.io._atomic import atomic_path
+from treeform.structures.mesh import Material, Mesh, MeshPart
+
+__all__ = ["write_glb", "read_glb", "read_glb_counts", "accessor_array"]
+
+_GLB_MAGIC = 0x46546C67  # b"glTF"
+_CHUNK_JSON = 0x4E4F534A  # b"JSON"
+_CHUNK_BIN = 0x004E4942  # b"BIN\0"
+
+# componentType
+_FLOAT = 5126
+_UNSIGNED_SHORT = 5123
+_UNSIGNED_INT = 5125
+# bufferView.target
+_ARRAY_BUFFER = 34962
+_ELEMENT_ARRAY_BUFFER = 34963
+# sampler
+_LINEAR = 9729
+_LINEAR_MIPMAP_LINEAR = 9987
+_REPEAT = 10497
+# primitive.mode
+_TRIANGLES = 4
+
+_COMPONENT_SIZE = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+
+
+def _pad4(n: int) -> int:
+    return (4 - n % 4) % 4
+
+
+class _BinBuilder:
+    """Accumulates the BIN chunk, bufferViews and accessors (every view 4-byte aligned)."""
+
+    def __init__(self):
+        self.chunks: list[bytes] = []
+        self.length = 0
+        self.buffer_views: list[dict] = []
+        self.accessors: list[dict] = []
+
+    def add_view(self, data: bytes, target: int | None = None) -> int:
+        view = {"buffer": 0, "byteOffset": self.length, "byteLength": len(data)}
+        if target is not None:
+            view["target"] = target
+        self.chunks.append(data)
+        pad = _pad4(len(data))
+        if pad:
+            self.chunks.append(b"\0" * pad)
+        self.length += len(data) + pad
+        self.buffer_views.append(view)
+        return len(self.buffer_views) - 1
+
+    def add_accessor(self, array: np.ndarray, component_type: int, type_: str, *,
+                     target: int, min_max: bool = False) -> int:
+        array = np.ascontiguousarray(array)
+        view = self.add_view(array.tobytes(), target)
+        acc = {"bufferView": view, "byteOffset": 0, "componentType": component_type,
+               "count": int(len(array)), "type": type_}
+        if min_max:
+            acc["min"] = [float(x) for x in array.min(axis=0)]
+            acc["max"] = [float(x) for x in array.max(axis=0)]
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def bytes(self) -> bytes:
+        return b"".join(self.chunks)
+
+
+def _unit_normals(normals: np.ndarray) -> np.ndarray:
+    """(V, 3) float32 unit normals; zero-length normals become +Y (glTF requires unit length)."""
+    n = normals.astype(np.float64)
+    length = np.linalg.norm(n, axis=1)
+    bad = ~(length > 1e-12)
+    n[bad] = (0.0, 1.0, 0.0)
+    length[bad] = 1.0
+    return (n / length[:, None]).astype(np.float32)
+
+
+def _encode_png(texture: np.ndarray) -> bytes:
+    """PNG bytes of an (H, W, 4) uint8 RGBA texture (stored as RGB when fully opaque)."""
+    from PIL import Image
+
+    tex = np.ascontiguousarray(texture, dtype=np.uint8)
+    if np.all(tex[..., 3] == 255):
+        img = Image.fromarray(np.ascontiguousarray(tex[..., :3]))
+    else:
+        img = Image.fromarray(tex)
+    buf = io.BytesIO()
+    img.save(buf, format="PNG", optimize=False)
+    return buf.getvalue()
+
+
+def _clamp01(x) -> float:
+    return float(min(max(float(x), 0.0), 1.0))
+
+
+def _check_finite(part: MeshPart, index: int) -> None:
+    for attr in ("normals", "uvs", "colors"):
+        if not np.all(np.isfinite(getattr(part, attr))):
+            raise InputError(f"mesh.parts[{index}] ({part.name!r}).{attr}: contains NaN or infinite values")
+
+
+def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
+    """Write ``mesh`` as a glTF 2.0 binary file (``.glb``), atomically.
+
+    One glTF mesh with one triangle primitive per non-empty :class:`MeshPart` (parts with
+    no vertices or no triangles are skipped), one node and one scene. Each primitive has
+    ``POSITION`` (float VEC3 with min/max), ``NORMAL`` (normalised; zero-length normals
+    become +Y), ``TEXCOORD_0`` and, only when some vertex colour differs from 1,
+    ``COLOR_0`` (float VEC4, clamped to [0, 1]); indices are ``UNSIGNED_SHORT`` when every
+    index fits below 65535 (the primitive-restart value is never used), else
+    ``UNSIGNED_INT``. Materials are PBR metallic-roughness with ``baseColorFactor``, an
+    embedded PNG ``baseColorTexture`` when :attr:`Material.texture` is set (sampler
+    LINEAR_MIPMAP_LINEAR / LINEAR, REPEAT), ``alphaMode``, ``alphaCutoff`` (MASK only) and
+    ``doubleSided``. Parts that share one :class:`Material` object share one glTF material.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Parts with positions (V, 3), normals (V, 3), uvs (V, 2), colors (V, 4) and
+        indices (F, 3); metres, +Y up (glTF's convention: no axis flip).
+    path : str or path-like
+        Output file; written to a temporary name first, then renamed.
+    generator : str, keyword-only
+        Stored in ``asset.generator``.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        ``mesh`` is not a Mesh, fails validation, has no triangles, or holds NaN/inf.
+    OutputError
+        ``path`` cannot be written.
+    """
+    if not isinstance(mesh, Mesh):
+        raise InputError(f"mesh: expected a treeform Mesh, got {type(mesh).__name__}")
+    mesh.validate()
+    parts = [(i, p) for i, p in enumerate(mesh.parts) if p.n_vertices and p.n_triangles]
+    if not parts:
+        raise InputError("mesh: has no non-empty part (no triangles to write)")
+
+    b = _BinBuilder()
+    materials: list[dict] = []
+    material_index: dict[int, int] = {}
+    images: list[dict] = []
+    textures: list[dict] = []
+    texture_index: dict[int, int] = {}
+    primitives: list[dict] = []
+
+    def material_of(m: Material) -> int:
+        if id(m) in material_index:
+            return material_index[id(m)]
+        pbr = {
+            "baseColorFactor": [_clamp01(c) for c in m.base_color],
+            "metallicFactor": _clamp01(m.metallic),
+            "roughnessFactor": _clamp01(m.roughness),
+        }
+        if m.texture is not None:
+            key = id(m.texture)
+            if key not in texture_index:
+                view = b.add_view(_encode_png(m.texture))
+                images.append({"bufferView": view, "mimeType": "image/png", "name": m.name})
+                textures.append({"sampler": 0, "source": len(images) - 1})
+                texture_index[key] = len(textures) - 1
+            pbr["baseColorTexture"] = {"index": texture_index[key], "texCoord": 0}
+        mat = {"name": m.name, "pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode,
+               "doubleSided": bool(m.double_sided)}
+        if m.alpha_mode == "MASK":
+            mat["alphaCutoff"] = max(float(m.alpha_cutoff), 0.0)
+        materials.append(mat)
+        material_index[id(m)] = len(materials) - 1
+        return material_index[id(m)]
+
+    for i, p in parts:
+        _check_finite(p, i)
+        attributes = {
+            "POSITION": b.add_accessor(p.positions, _FLOAT, "VEC3", target=_ARRAY_BUFFER, min_max=True),
+            "NORMAL": b.add_accessor(_unit_normals(p.normals), _FLOAT, "VEC3", target=_ARRAY_BUFFER),
+            "TEXCOORD_0": b.add_accessor(p.uvs.astype(np.float32), _FLOAT, "VEC2", target=_ARRAY_BUFFER),
+        }
+        if np.any(p.colors != 1.0):
+            colors = np.clip(p.colors, 0.0, 1.0).astype(np.float32)
+            attributes["COLOR_0"] = b.add_accessor(colors, _FLOAT, "VEC4", target=_ARRAY_BUFFER)
+        flat = p.indices.reshape(-1)
+        if int(flat.max()) < 65535:
+            idx = b.add_accessor(flat.astype("<u2"), _UNSIGNED_SHORT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
+        else:
+            idx = b.add_accessor(flat.astype("<u4"), _UNSIGNED_INT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
+        primitives.append({"attributes": attributes, "indices": idx, "material": material_of(p.material),
+                           "mode": _TRIANGLES, "extras": {"name": p.name}})
+
+    name = "+".join(p.name for _, p in parts)
+    gltf: dict = {
+        "asset": {"version": "2.0", "generator": str(generator)},
+        "scene": 0,
+        "scenes": [{"name": "scene", "nodes": [0]}],
+        "nodes": [{"name": name, "mesh": 0}],
+        "meshes": [{"name": name, "primitives": primitives}],
+        "materials": materials,
+        "accessors": b.accessors,
+        "bufferViews": b.buffer_views,
+        "buffers": [{"byteLength": b.length}],
+    }
+    if textures:
+        gltf["samplers"] = [{"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR,
+                             "wrapS": _REPEAT, "wrapT": _REPEAT}]
+        gltf["images"] = images
+        gltf["textures"] = textures
+
+    json_bytes = json.dumps(gltf, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+    json_bytes += b" " * _pad4(len(json_bytes))
+    bin_bytes = b.bytes()  # already a multiple of 4
+    total = 12 + 8 + len(json_bytes) + 8 + len(bin_bytes)
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(struct.pack("<III", _GLB_MAGIC, 2, total))
+            f.write(struct.pack("<II", len(json_bytes), _CHUNK_JSON))
+            f.write(json_bytes)
+            f.write(struct.pack("<II", len(bin_bytes), _CHUNK_BIN))
+            f.write(bin_bytes)
+    return Path(path)
+
+
+def read_glb(path) -> tuple[dict, bytes]:
+    """Parse a GLB file into its JSON document and its BIN chunk.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    gltf : dict
+        The parsed JSON chunk.
+    bin : bytes
+        The BIN chunk (``b""`` when absent).
+
+    Raises
+    ------
+    InputError
+        Missing file, or not a well-formed glTF 2.0 binary.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, not a GLB file") from None
+    if len(data) < 20:
+        raise InputError(f"{path}: not a GLB file (too short)")
+    magic, version, length = struct.unpack_from("<III", data, 0)
+    if magic != _GLB_MAGIC:
+        raise InputError(f"{path}: not a GLB file (bad magic)")
+    if version != 2:
+        raise InputError(f"{path}: unsupported GLB version {version}, expected 2")
+    if length > len(data):
+        raise InputError(f"{path}: truncated GLB file ({len(data)} of {length} bytes)")
+    offset, gltf, bin_chunk = 12, None, b""
+    while offset + 8 <= length:
+        clen, ctype = struct.unpack_from("<II", data, offset)
+        chunk = data[offset + 8: offset + 8 + clen]
+        if len(chunk) != clen:
+            raise InputError(f"{path}: truncated GLB chunk")
+        if ctype == _CHUNK_JSON and gltf is None:
+            try:
+                gltf = json.loads(chunk.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                raise InputError(f"{path}: GLB JSON chunk is not valid JSON") from None
+        elif ctype == _CHUNK_BIN and not bin_chunk:
+            bin_chunk = chunk
+        offset += 8 + clen
+    if not isinstance(gltf, dict):
+        raise InputError(f"{path}: GLB file has no JSON chunk")
+    return gltf, bin_chunk
+
+
+def read_glb_counts(path) -> tuple[int, int]:
+    """Total vertex and triangle counts of a GLB's meshes (each primitive counted once).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    n_vertices : int
+        Sum of the ``POSITION`` accessor counts.
+    n_triangles : int
+        Sum over triangle primitives of index count / 3 (vertex count / 3 when unindexed).
+
+    Raises
+    ------
+    InputError
+        Not a GLB file, or a primitive that is not a triangle list.
+    """
+    gltf, _ = read_glb(path)
+    accessors = gltf.get("accessors", [])
+    n_vertices = n_triangles = 0
+    try:
+        for mesh in gltf.get("meshes", []):
+            for prim in mesh["primitives"]:
+                if prim.get("mode", _TRIANGLES) != _TRIANGLES:
+                    raise InputError(f"{path}: primitive mode {prim['mode']} is not a triangle list")
+                nv = int(accessors[prim["attributes"]["POSITION"]]["count"])
+                n_vertices += nv
+                n_idx = int(accessors[prim["indices"]]["count"]) if "indices" in prim else nv
+                n_triangles += n_idx // 3
+    except (KeyError, IndexError, TypeError):
+        raise InputError(f"{path}: malformed glTF mesh/accessor data") from None
+    return n_vertices, n_triangles
+
+
+def accessor_array(gltf: dict, bin_chunk: bytes, index: int) -> np.ndarray:
+    """Read accessor ``index`` of a GLB (tightly packed, non-sparse) as a numpy array.
+
+    Parameters
+    ----------
+    gltf : dict
+    bin_chunk : bytes
+    index : int
+
+    Returns
+    -------
+    ndarray, shape (count,) or (count, k)
+    """
+    acc = gltf["accessors"][index]
+    view = gltf["bufferViews"][acc["bufferView"]]
+    dtype = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}[acc["componentType"]]
+    k = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc["type"]]
+    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    arr = np.frombuffer(bin_chunk, dtype=dtype, count=acc["count"] * k, offset=start)
+    return arr.reshape(-1, k) if k > 1 else arr

@@ -1,0 +1,299 @@
+"""Robust photo and mask readers, and an atomic PNG writer (Pillow).
+
+Every way a user's file can be wrong ends in one :class:`InputError` with a one-line
+message naming the file: missing path, a directory, an empty file, a file that is not an
+image, truncated or corrupt image data, an image smaller than 16 px on a side, or one larger
+than :data:`MAX_PIXELS`. Large JPEGs are decoded at a reduced DCT scale
+(``Image.draft``), so a 12000 x 9000 photo costs a few MB, not 300 MB.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform.io._atomic import atomic_path
+from treeform.structures.photo import Photo
+
+__all__ = ["read_photo", "read_mask", "write_png", "MAX_PIXELS", "MIN_SIDE"]
+
+MAX_PIXELS = 200_000_000
+"""Largest image (width x height) the readers accept; Pillow's own bomb limit is raised to it."""
+
+MIN_SIDE = 16
+"""Smallest accepted image side in pixels."""
+
+_EXIF_ORIENTATION = 0x0112
+_SIXTEEN_BIT = ("I;16", "I;16L", "I;16B", "I;16N")
+_ALPHA_MODES = ("RGBA", "LA", "PA", "RGBa", "La")
+
+
+def _pil():
+    """Import Pillow lazily (keeps ``import treeform.io`` light) and set the bomb limit."""
+    from PIL import Image, ImageFile, ImageOps
+
+    if Image.MAX_IMAGE_PIXELS is not None and Image.MAX_IMAGE_PIXELS < MAX_PIXELS:
+        Image.MAX_IMAGE_PIXELS = MAX_PIXELS
+    return Image, ImageFile, ImageOps
+
+
+def _too_large(path: Path, w: int | None = None, h: int | None = None) -> InputError:
+    size = f" ({w}\u00d7{h} = {w * h / 1e6:.0f} MP)" if w and h else ""
+    return InputError(f"{path}: image too large{size}; the limit is {MAX_PIXELS / 1e6:.0f} MP")
+
+
+def _open_image(path):
+    """Open (header only) and sanity-check an image file; returns a lazy PIL image.
+
+    Raises
+    ------
+    InputError
+        Missing path, directory, empty file, not an image, too small or too large.
+    """
+    Image, _, _ = _pil()
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not an image file")
+    try:
+        if path.stat().st_size == 0:
+            raise InputError(f"{path}: empty file")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(path)
+    except Image.DecompressionBombError:
+        raise _too_large(path) from None
+    except Image.UnidentifiedImageError:
+        raise InputError(f"{path}: not an image file (unrecognised format)") from None
+    except PermissionError:
+        raise InputError(f"{path}: cannot read, permission denied") from None
+    except InputError:
+        raise
+    except Exception as exc:  # corrupt headers raise SyntaxError, struct.error, ValueError, ...
+        raise InputError(f"{path}: unreadable image file ({_short(exc)})") from None
+    w, h = im.size
+    if w * h > MAX_PIXELS:
+        im.close()
+        raise _too_large(path, w, h)
+    if min(w, h) < MIN_SIDE:
+        im.close()
+        raise InputError(f"{path}: image too small ({w}\u00d7{h} px; need at least {MIN_SIDE} px on each side)")
+    return im
+
+
+def _short(exc: BaseException) -> str:
+    msg = " ".join(str(exc).split())
+    return (msg[:80] + "...") if len(msg) > 80 else (msg or type(exc).__name__)
+
+
+def _decode(im, path: Path) -> None:
+    """Fully decode ``im`` so truncated data is an error, never silently grey pixels."""
+    Image, ImageFile, _ = _pil()
+    old = ImageFile.LOAD_TRUNCATED_IMAGES
+    ImageFile.LOAD_TRUNCATED_IMAGES = False
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im.load()
+    except MemoryError:
+        raise _too_large(path, *im.size) from None
+    except Exception as exc:
+        raise InputError(f"{path}: truncated or corrupt image data ({_short(exc)})") from None
+    finally:
+        ImageFile.LOAD_TRUNCATED_IMAGES = old
+
+
+def _exif_upright(im):
+    """Apply the EXIF orientation (``ImageOps.exif_transpose``); a broken EXIF block is ignored."""
+    _, _, ImageOps = _pil()
+    try:
+        return ImageOps.exif_transpose(im)
+    except Exception:  # malformed EXIF: keep the pixels as stored
+        return im
+
+
+def _gray_to_uint8(a: np.ndarray, mode: str, fmt: str | None) -> np.ndarray:
+    """Scale a high-bit-depth single-channel array (modes I;16*, I, F) to uint8 0..255.
+
+    16-bit data (modes ``I;16*``, and mode ``I`` from PNG, or with values above 255) maps
+    0..65535 to 0..255; floats in [0, 1] map to 0..255; anything else is min-max normalised.
+    """
+    a = np.asarray(a)
+    if mode in _SIXTEEN_BIT:
+        return ((a.astype(np.uint32) * 255 + 32767) // 65535).astype(np.uint8)
+    a = np.nan_to_num(a.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 0.0)
+    if mode == "I" and lo >= 0 and hi <= 65535 and (fmt == "PNG" or hi > 255):
+        out = a * (255.0 / 65535.0)
+    elif mode == "F" and lo >= 0 and hi <= 1:
+        out = a * 255.0
+    elif lo >= 0 and hi <= 255:
+        out = a
+    else:
+        out = (a - lo) * (255.0 / (hi - lo)) if hi > lo else np.zeros_like(a)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def _to_mode(im, mode: str, background: tuple[int, int, int]):
+    """Convert ``im`` to ``mode`` ("RGB" or "L"), compositing transparency over ``background``."""
+    Image, _, _ = _pil()
+    if im.mode == mode:
+        return im
+    if im.mode in _SIXTEEN_BIT or im.mode in ("I", "F"):
+        g = Image.fromarray(_gray_to_uint8(np.asarray(im), im.mode, im.format))
+        return g if mode == "L" else g.convert(mode)
+    if im.mode == "P" or im.mode in _ALPHA_MODES or "transparency" in im.info:
+        rgba = im.convert("RGBA")
+        bg = Image.new("RGBA", rgba.size, (*background, 255))
+        return Image.alpha_composite(bg, rgba).convert(mode)
+    return im.convert(mode)  # 1, L, CMYK, YCbCr, LAB, HSV, RGBX, ...
+
+
+def read_photo(path, *, max_size: int = 1024) -> Photo:
+    """Read a photograph as an upright RGB :class:`Photo`, downscaled to ``max_size``.
+
+    Steps: header checks; for JPEG a reduced-scale decode via ``Image.draft`` (bounded
+    memory); a full decode (truncated files are errors); EXIF orientation
+    (``ImageOps.exif_transpose``); conversion to RGB (grayscale and CMYK converted; palette,
+    LA and RGBA composited over white; 16-bit scaled to 8-bit); ``thumbnail`` so that the
+    long side is at most ``max_size`` (never upscaled).
+
+    Parameters
+    ----------
+    path : str or path-like
+        JPEG, PNG, TIFF, WebP, BMP, ... anything Pillow decodes.
+    max_size : int, keyword-only
+        Longest side of the result in pixels (>= 16).
+
+    Returns
+    -------
+    Photo
+        ``image`` (H, W, 3) uint8; ``source`` the path; ``scale`` = result size / original
+        size (<= 1).
+
+    Raises
+    ------
+    InputError
+        One line naming the file: no such file, a directory, an empty file, not an image,
+        truncated/corrupt data, too small (< 16 px on a side), too large (> 200 MP).
+    """
+    Image, _, _ = _pil()
+    if isinstance(max_size, bool) or not isinstance(max_size, (int, np.integer)) or max_size < MIN_SIDE:
+        raise InputError(f"max_size: expected an integer >= {MIN_SIDE}, got {max_size!r}")
+    path = Path(path)
+    im = _open_image(path)
+    try:
+        orig_w, orig_h = im.size
+        if im.format == "JPEG":
+            im.draft("RGB", (int(max_size), int(max_size)))
+        _decode(im, path)
+        up = _exif_upright(im)
+        rgb = _to_mode(up, "RGB", (255, 255, 255))
+        if max(rgb.size) > max_size:
+            rgb.thumbnail((int(max_size), int(max_size)), Image.Resampling.LANCZOS)
+        image = np.array(rgb, dtype=np.uint8)
+    finally:
+        im.close()
+    if image.ndim != 3 or image.shape[2] != 3:  # pragma: no cover - defensive
+        raise InputError(f"{path}: could not convert the image to RGB")
+    scale = max(image.shape[:2]) / max(orig_w, orig_h)
+    return Photo(np.ascontiguousarray(image), str(path), float(scale))
+
+
+def read_mask(path, shape) -> np.ndarray:
+    """Read a user-drawn tree mask (white = tree) and fit it to a photo of ``shape``.
+
+    Any mode is accepted: colour is converted to luminance, transparency composited over
+    black (transparent = background), 16-bit scaled to 8-bit; pixels > 127 are tree. The
+    EXIF orientation is applied. A mask of a different size is resized with
+    nearest-neighbour when its aspect ratio is within 1 % of the photo's.
+
+    Parameters
+    ----------
+    path : str or path-like
+    shape : tuple of int (H, W)
+        The photo's size, e.g. ``Photo.shape``.
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+
+    Raises
+    ------
+    InputError
+        The file is unreadable (see :func:`read_photo`), ``shape`` is invalid, or the
+        aspect ratios differ by more than 1 % (the message names both sizes).
+    """
+    Image, _, _ = _pil()
+    try:
+        H, W = (int(s) for s in shape)
+    except (TypeError, ValueError):
+        raise InputError(f"shape: expected (H, W), got {shape!r}") from None
+    if H < 1 or W < 1:
+        raise InputError(f"shape: expected positive (H, W), got {shape!r}")
+    path = Path(path)
+    im = _open_image(path)
+    try:
+        _decode(im, path)
+        gray = _to_mode(_exif_upright(im), "L", (0, 0, 0))
+        w, h = gray.size
+        if (w, h) != (W, H):
+            if abs((w / h) / (W / H) - 1.0) > 0.01:
+                raise InputError(f"{path}: mask size {w}\u00d7{h} does not match the photo size {W}\u00d7{H} "
+                                 "(different aspect ratio)")
+            gray = gray.resize((W, H), Image.Resampling.NEAREST)
+        mask = np.asarray(gray) > 127
+    finally:
+        im.close()
+    return np.ascontiguousarray(mask)
+
+
+def write_png(array, path) -> Path:
+    """Write an image array as PNG, atomically.
+
+    Parameters
+    ----------
+    array : ndarray
+        (H, W) bool (0/255), uint8 or uint16 (16-bit gray); (H, W, 1|3|4) uint8 (gray, RGB,
+        RGBA); or float of any of these shapes with values in [0, 1] (scaled to uint8).
+        A :class:`Photo` is accepted (its ``image``).
+    path : str or path-like
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        Unsupported shape or dtype, NaN, or floats outside [0, 1].
+    OutputError
+        ``path`` cannot be written.
+    """
+    Image, _, _ = _pil()
+    if isinstance(array, Photo):
+        array = array.image
+    a = np.asarray(array)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[..., 0]
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))) or min(a.shape[:2]) < 1:
+        raise InputError(f"array: expected shape (H, W), (H, W, 3) or (H, W, 4), got {a.shape}")
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    elif a.dtype.kind == "f":
+        if not np.all(np.isfinite(a)) or a.min() < 0 or a.max() > 1:
+            raise InputError("array: float images must hold finite values in [0, 1]")
+        a = np.rint(a * 255).astype(np.uint8)
+    if (a.dtype == np.uint16 and a.ndim == 2) or a.dtype == np.uint8:
+        # uint8 (H, W) -> L, (H, W, 3) -> RGB, (H, W, 4) -> RGBA; uint16 (H, W) -> I;16
+        img = Image.fromarray(np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("=")))
+    else:
+        raise InputError(f"array: expected bool, uint8, 2-D uint16 or float in [0, 1], got {a.dtype}")
+    with atomic_path(path) as tmp:
+        img.save(tmp, format="PNG")
+    return Path(path)

@@ -1,0 +1,98 @@
+"""Configuration of the single-photo envelope method (seed 001 §3)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.errors import InputError
+
+LOD_TRIANGLES = {"low": 20_000, "medium": 60_000, "high": 200_000, "full": None}
+
+
+@dataclass
+class EnvelopeConfig:
+    """Every knob of :func:`treeform.methods.envelope.pipeline.reconstruct`."""
+
+    seed: int = 0
+    """Random seed: same photo + seed -> byte-identical skeleton.json."""
+    max_size: int = 640
+    """Long side in pixels the photo is reduced to before any work."""
+    tree_height: float = 10.0
+    """Assumed height of the tree in metres (a single photo has no absolute scale)."""
+    fov_y: float = 40.0
+    """Vertical field of view of the photo's camera in degrees."""
+    crown: str = "round"
+    """Envelope tangent function (§3.2): 'round' (f = k) or 'conical' (f = a·y² + 1)."""
+    tangent_k: float | None = None
+    """Silhouette tangent length k (about 6 inflates a disc into a sphere); None = automatic:
+    the k that makes the envelope ``depth_ratio`` times as deep as it is wide."""
+    depth_ratio: float = 1.0
+    """Envelope depth / width when ``tangent_k`` is None (1 = a round crown from the side)."""
+    conical_a: float = 3.0
+    """Quadratic coefficient a of the conical tangent function."""
+    envelope_grid: int = 128
+    """Grid size (crown's longer side, pixels) of the bilaplacian solve."""
+    relief_levels: int = 4
+    """Gaussian pyramid levels of the relief (§3.4: 4 or 5)."""
+    relief_weight: float = 0.15
+    """rho of §3.5: r = |p - c| (1 + rho (h - 0.5))."""
+    rdm_resolution: int = 256
+    """Cubemap side R of the radial distance map (6 x R x R texels)."""
+    rdm_rotations: tuple = ()
+    """Extra copies of the envelope rotated about the vertical axis (degrees), max radius kept."""
+    attractors: int = 10_000
+    """Blue-noise attraction points of the space colonization (§3.6)."""
+    segment_length: float = 0.04
+    """Space-colonization internode D, as a fraction of the mean crown radius."""
+    kill_factor: float = 2.5
+    """Kill distance d_k = kill_factor x D."""
+    influence: float = 0.5
+    """Influence radius d_i as a fraction of the mean crown radius."""
+    pipe_exponent: float = 2.3
+    """Pipe-model exponent e: r_parent^e = sum r_child^e."""
+    leaves: int = 8000
+    """Number of leaf clusters (alpha-textured cards)."""
+    leaf_coverage: float = 3.0
+    """Mean number of leaf cards over a crown pixel seen from the front; sets the card size."""
+    lod: str = "medium"
+    """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
+    radial_segments: int = 8
+    """Sides of the branch tubes before any LOD reduction."""
+    render_size: int = 512
+    """Height in pixels of the side and top preview renders."""
+
+    def validate(self) -> "EnvelopeConfig":
+        check_choice(self.crown, "crown", ("round", "conical"))
+        check_choice(self.lod, "lod", tuple(LOD_TRIANGLES))
+        if self.tangent_k is not None:
+            check_positive(self.tangent_k, "tangent_k")
+        for name in ("tree_height", "depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent",
+                     "leaf_coverage"):
+            check_positive(getattr(self, name), name)
+        check_positive(self.relief_weight, "relief_weight", allow_zero=True)
+        for name, lo, hi in (("max_size", 32, 8192), ("envelope_grid", 16, 1024), ("relief_levels", 1, 8),
+                             ("rdm_resolution", 8, 2048), ("attractors", 10, 2_000_000), ("leaves", 0, 2_000_000),
+                             ("radial_segments", 3, 64), ("render_size", 32, 4096)):
+            v = getattr(self, name)
+            if not isinstance(v, int) or not lo <= v <= hi:
+                raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+        if not 5 <= self.fov_y <= 120:
+            raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
+        return self
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["rdm_rotations"] = list(self.rdm_rotations)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EnvelopeConfig":
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
+        d = dict(d)
+        if "rdm_rotations" in d:
+            d["rdm_rotations"] = tuple(d["rdm_rotations"])
+        return cls(**d).validate()

@@ -1,0 +1,364 @@
+"""Single photo -> 3D tree by crown envelope + radial distance map + space colonization (seed 001 §3).
+
+Each stage is one call into a domain folder; this module only composes them, moves
+between pixel and world coordinates (metres, Y up, camera on +Z looking at -Z) and
+writes the outputs atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from treeform import __version__
+from treeform._shared.errors import InputError, OutputError
+from treeform._shared.rng import as_rng
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.methods.envelope.config import LOD_TRIANGLES, EnvelopeConfig
+from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
+
+OUTPUT_FILES = ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png",
+                "metrics.json", "config.json")
+
+STAGES = ("load", "segment", "envelope", "relief", "rdm", "attractors", "colonize", "leaves", "mesh",
+          "render", "export")
+
+
+@dataclass
+class Reconstruction:
+    """Everything :func:`reconstruct` made; ``files`` maps output names to paths (if written)."""
+
+    photo: Photo
+    segmentation: Segmentation
+    camera: Camera
+    envelope_vertices: np.ndarray
+    envelope_faces: np.ndarray
+    rdm: RadialDistanceMap
+    skeleton: TreeSkeleton
+    foliage: Foliage
+    mesh: Mesh
+    metrics: dict
+    config: EnvelopeConfig
+    renders: dict = field(default_factory=dict)
+    preview: np.ndarray | None = None
+    files: dict = field(default_factory=dict)
+
+
+def _as_photo(photo, max_size: int) -> Photo:
+    from treeform.io.images import read_photo
+
+    if isinstance(photo, Photo):
+        return photo
+    if isinstance(photo, np.ndarray):
+        if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
+            raise InputError(f"photo: expected an (H, W, 3) uint8 array, got {photo.shape} {photo.dtype}")
+        return Photo(np.ascontiguousarray(photo))
+    return read_photo(photo, max_size=max_size)
+
+
+def _fit(photo: Photo, max_size: int) -> Photo:
+    """Downscale so the long side is at most ``max_size``."""
+    h, w = photo.shape
+    s = max_size / max(h, w)
+    if s >= 1:
+        return photo
+    from PIL import Image
+
+    im = Image.fromarray(photo.image).resize((max(1, round(w * s)), max(1, round(h * s))), Image.LANCZOS)
+    return Photo(np.asarray(im), photo.source, photo.scale * s)
+
+
+def _check_out(out) -> Path:
+    out = Path(out)
+    parent = out if out.exists() else out.parent
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out}: exists and is not a directory")
+    if not parent.exists():
+        raise OutputError(f"--out {out}: parent directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out}: directory is not writable")
+    return out
+
+
+def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: float) -> tuple[Camera, float]:
+    """The camera that took the photo, in a world where the trunk base is the origin.
+
+    The tree spans ``layout.height_px`` pixels and is ``tree_height`` metres tall, which
+    fixes metres per pixel m on the plane z = 0 through the trunk; the camera at distance
+    D = focal · m on +Z looks along -Z at that plane, so the plane maps onto the photo
+    pixel for pixel.
+
+    Returns
+    -------
+    camera : Camera
+    m : float
+        Metres per pixel on the z = 0 plane.
+    """
+    m = tree_height / layout.height_px
+    focal = 0.5 * height / math.tan(math.radians(fov_y) / 2)
+    dist = focal * m
+    bu, bv = layout.base
+    cx = (width / 2 - bu) * m
+    cy = (bv - height / 2) * m
+    cam = Camera(width, height, fov_y, (cx, cy, dist), (cx, cy, 0.0), (0.0, 1.0, 0.0),
+                 near=max(dist - 4 * tree_height, dist * 0.05), far=dist + 4 * tree_height)
+    return cam, m
+
+
+def _pixels_to_world(cam: Camera, m: float, uvz: np.ndarray) -> np.ndarray:
+    """(column, row, height-in-pixels) -> world, by unprojecting at depth D - z·m."""
+    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
+    return cam.unproject(uvz[:, 0], uvz[:, 1], dist - uvz[:, 2] * m)
+
+
+def _in_hull(cam: Camera, mask: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Whether points project onto tree pixels of the photo (its visual hull)."""
+    uvz = cam.project(points)
+    h, w = mask.shape
+    u = np.floor(uvz[:, 0]).astype(np.int64)
+    v = np.floor(uvz[:, 1]).astype(np.int64)
+    ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
+    out = np.zeros(len(points), bool)
+    out[ok] = mask[v[ok], u[ok]]
+    return out
+
+
+def _views(cam: Camera, tree_height: float, size: int) -> dict:
+    """Side and top cameras at the front camera's distance, centred on the tree axis."""
+    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
+    mid = (0.0, tree_height / 2, 0.0)
+    side = Camera(cam.width, cam.height, cam.fov_y, (dist, mid[1], 0.0), mid, (0, 1, 0), cam.near, cam.far)
+    top = Camera(cam.width, cam.height, cam.fov_y, (0.0, mid[1] + dist, 0.0), mid, (0, 0, -1), cam.near, cam.far)
+    return {"side": side, "top": top}
+
+
+def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = None,
+                progress: ProgressCallback | None = None, **options) -> Reconstruction:
+    """Reconstruct a leafy, textured 3D tree from one photo (seed 001 §3).
+
+    Parameters
+    ----------
+    photo : path, ndarray (H, W, 3) uint8, or Photo
+    mask : path or ndarray (H, W), optional
+        User tree mask (white = tree) replacing the automatic segmentation.
+    out : path, optional
+        Directory to write tree.glb, tree.obj (+ .mtl, textures), skeleton.json,
+        skeleton.ply, preview.png, metrics.json and config.json; files appear only
+        when every stage succeeded.
+    config : EnvelopeConfig, optional
+    progress : callable, optional
+        ``progress(stage, event, seconds)``.
+    **options
+        Overrides of config fields, e.g. ``seed=3, crown="conical", leaves=5000, lod="low"``.
+
+    Returns
+    -------
+    Reconstruction
+    """
+    cfg = EnvelopeConfig.from_dict({**(config.to_dict() if config else {}), **options})
+    out_dir = _check_out(out) if out is not None else None
+    timer = StageTimer(progress)
+    rng = as_rng(cfg.seed)
+
+    with timer.stage("load"):
+        from treeform.io.images import read_mask
+
+        ph = _fit(_as_photo(photo, max(cfg.max_size, 64)), cfg.max_size)
+        image = ph.image
+        user_mask = None
+        if mask is not None:
+            user_mask = read_mask(mask, ph.shape) if not isinstance(mask, np.ndarray) else np.asarray(mask)
+    with timer.stage("segment"):
+        from treeform.crown.layout import tree_layout
+        from treeform.segment import mask_to_segmentation, segment_tree
+
+        seg = mask_to_segmentation(user_mask, image) if user_mask is not None else segment_tree(image, seed=cfg.seed)
+        layout = tree_layout(seg)
+        height, width = ph.shape
+        cam, mpp = photo_camera(width, height, layout, cfg.tree_height, cfg.fov_y)
+    with timer.stage("envelope"):
+        from treeform.crown.envelope import inflate_envelope
+
+        env = inflate_envelope(layout.crown_mask, crown=cfg.crown, k=cfg.tangent_k, a=cfg.conical_a,
+                               grid_size=cfg.envelope_grid, depth_ratio=cfg.depth_ratio)
+        world_verts = _pixels_to_world(cam, mpp, env.vertices)
+    with timer.stage("relief"):
+        from treeform.crown.relief import relief_map
+
+        relief = relief_map(image, layout.crown_mask, levels=cfg.relief_levels)
+        vu = np.clip(env.vertices[:, 0].astype(np.int64), 0, width - 1)
+        vv = np.clip(env.vertices[:, 1].astype(np.int64), 0, height - 1)
+        h_vert = relief[vv, vu]
+    with timer.stage("rdm"):
+        import scipy.ndimage as ndi
+
+        from treeform.crown.rdm import rdm_from_texels
+        from treeform.render.cubemap import render_radial_cubemap
+
+        edt = ndi.distance_transform_edt(layout.crown_mask)
+        cv_, cu_ = np.unravel_index(np.argmax(edt), edt.shape)
+        center = _pixels_to_world(cam, mpp, np.array([[cu_ + 0.5, cv_ + 0.5, 0.0]]))[0]
+        radii = render_radial_cubemap(world_verts, env.faces, center, values=h_vert, rho=cfg.relief_weight,
+                                      resolution=cfg.rdm_resolution, rotations_deg=tuple(cfg.rdm_rotations))
+        rdm = rdm_from_texels(center, radii)
+        r_mean = rdm.mean_radius()
+    hull_mask = ndi.binary_dilation(seg.tree_mask, iterations=1)
+
+    def inside(p):
+        ok = rdm.contains(p)
+        ok[ok] = _in_hull(cam, hull_mask, p[ok])
+        return ok
+
+    with timer.stage("attractors"):
+        from treeform.growth.sampling import blue_noise_points
+
+        lo, hi = rdm.bounds()
+        attractors = blue_noise_points(inside, (lo, hi), cfg.attractors, seed=rng)
+    with timer.stage("colonize"):
+        from treeform.growth.radii import branch_orders, pipe_model_radii
+        from treeform.growth.space_colonization import space_colonization
+
+        seg_len = cfg.segment_length * r_mean
+        base = np.zeros(3)
+        top = _pixels_to_world(cam, mpp, np.array([[layout.trunk_top[0], layout.trunk_top[1], 0.0]]))[0]
+        n_trunk = max(2, int(np.linalg.norm(top - base) / seg_len) + 1)
+        trunk = base + np.linspace(0, 1, n_trunk)[:, None] * (top - base)
+        # the bole carries no branches: only its top fifth may sprout (the rest is clear stem)
+        growable = np.linspace(0, 1, n_trunk) >= 0.8
+        sc = space_colonization(attractors, trunk, influence_radius=cfg.influence * r_mean,
+                                kill_distance=cfg.kill_factor * seg_len, segment_length=seg_len, growable=growable)
+        trunk_radius = max(layout.trunk_width * mpp / 2, 0.02)
+        n_tips = max(1, int((np.bincount(sc.parent[1:], minlength=len(sc.parent)) == 0).sum()))
+        tip_r = max(trunk_radius / n_tips ** (1 / cfg.pipe_exponent), 0.002)
+        radius = pipe_model_radii(sc.parent, tip_radius=tip_r, exponent=cfg.pipe_exponent)
+        radius *= trunk_radius / radius[0]
+        skeleton = TreeSkeleton(sc.positions, sc.parent, radius, branch_orders(sc.parent, radius),
+                                sc.iteration.astype(np.float64),
+                                meta={"method": "envelope", "seed": cfg.seed, "source": Path(ph.source).name})
+    with timer.stage("leaves"):
+        from treeform.crown.sampling import sample_crown_columns
+        from treeform.growth.leaves import attach_leaves, color_leaves
+
+        leaf_mask = seg.tree_mask & layout.crown_mask
+        area = leaf_mask.sum() * mpp * mpp
+        size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves, 1) / 0.33) if cfg.leaves else 0.1
+        # card centres stay a third of a card inside the silhouette so cards do not overhang it
+        inset = int(round(size / mpp / 3))
+        core = ndi.binary_erosion(leaf_mask, iterations=inset) if inset > 0 else leaf_mask
+        uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, env.front_z,
+                                   cfg.leaves, seed=rng)
+        pts = _pixels_to_world(cam, mpp, uvz)
+        # respect the relief-perturbed crown (the RDM): pull points that fall outside toward z = 0
+        for _ in range(3):
+            out_rdm = ~rdm.contains(pts)
+            if not out_rdm.any():
+                break
+            uvz[out_rdm, 2] *= 0.5
+            pts[out_rdm] = _pixels_to_world(cam, mpp, uvz[out_rdm])
+        foliage = attach_leaves(skeleton, pts, size=size, center=center, seed=rng)
+        if len(foliage):
+            fu = np.clip(uvz[:, 0].astype(np.int64), 0, width - 1)
+            fv = np.clip(uvz[:, 1].astype(np.int64), 0, height - 1)
+            zf = env.front_z[fv, fu]
+            visible = uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)
+            d = foliage.positions - center
+            shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
+            foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
+    with timer.stage("mesh"):
+        from treeform.geometry import leaf_texture, tree_mesh
+
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_TRIANGLES[cfg.lod],
+                         radial_segments=cfg.radial_segments, leaf_texture=leaf_texture(seed=cfg.seed),
+                         seed=cfg.seed)
+        wood = seg.wood_mask
+        if wood.sum() > 20:
+            tint = np.median(image[wood], axis=0) / 255.0
+            for part in mesh.parts:
+                if part.material.texture is not None and part.name != "leaves":
+                    tex_mean = part.material.texture[..., :3].reshape(-1, 3).mean(0) / 255.0
+                    f = np.clip(tint / np.maximum(tex_mean, 1e-3), 0.2, 3.0)
+                    part.material.base_color = (float(min(f[0], 1)), float(min(f[1], 1)), float(min(f[2], 1)), 1.0)
+    with timer.stage("render"):
+        from treeform.metrics import extent_ratio, iou, reprojection_error
+        from treeform.render import Lighting, Renderer, to_uint8_rgb
+        from treeform.report import compose_strip, segmentation_overlay
+
+        # soft, camera-relative light so the front view shows the albedo the photo gave the leaves
+        light = Lighting(direction=(-0.4, 0.6, 0.7), key=(0.45, 0.45, 0.42), sky=(0.8, 0.8, 0.82),
+                         ground=(0.55, 0.54, 0.5), camera_relative=True)
+        renders = {"front": Renderer(cam, lighting=light).render(mesh)}
+        for name, vc in _views(cam, cfg.tree_height, cfg.render_size).items():
+            renders[name] = Renderer(vc, lighting=light).render(mesh)
+        front_mask = renders["front"].mask
+        metrics = {
+            "reprojection_error": reprojection_error(front_mask, seg.tree_mask),
+            "iou": iou(front_mask, seg.tree_mask),
+            "depth_width_ratio": extent_ratio(renders["side"].mask, front_mask),
+            "nodes": skeleton.n_nodes,
+            "tips": int(len(skeleton.tips())),
+            "leaves": len(foliage),
+            "attractors": int(len(attractors)),
+            "attractors_left": sc.attractors_left,
+            "vertices": mesh.n_vertices,
+            "triangles": mesh.n_triangles,
+            "photo_size": [width, height],
+            "metres_per_pixel": mpp,
+        }
+        preview = compose_strip([image, segmentation_overlay(image, seg)]
+                                + [to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+    result = Reconstruction(ph, seg, cam, world_verts, env.faces, rdm, skeleton, foliage, mesh, metrics, cfg,
+                            renders, preview)
+    if out_dir is not None:
+        with timer.stage("export"):
+            result.files = _write_outputs(result, out_dir, timer)
+    metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
+    metrics["total_seconds"] = round(sum(timer.timings.values()), 4)
+    if out_dir is not None:
+        _write_json(out_dir / "metrics.json", metrics)
+    return result
+
+
+def _write_json(path: Path, data) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def _write_outputs(res: Reconstruction, out_dir: Path, timer: StageTimer) -> dict:
+    """Write every output into a staging folder, then move them into ``out_dir``."""
+    from treeform.io import write_glb, write_obj, write_png, write_skeleton_ply
+
+    parent = out_dir if out_dir.exists() else out_dir.parent
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=".treeform-", dir=parent))
+    except OSError as exc:
+        raise OutputError(f"--out {out_dir}: cannot write ({exc.strerror})") from None
+    try:
+        write_glb(res.mesh, stage / "tree.glb")
+        write_obj(res.mesh, stage / "tree.obj")
+        res.skeleton.save(stage / "skeleton.json")
+        write_skeleton_ply(res.skeleton, stage / "skeleton.ply")
+        write_png(res.preview, stage / "preview.png")
+        _write_json(stage / "config.json", {"treeform": __version__, "method": "envelope",
+                                             "photo": res.photo.source, "config": res.config.to_dict()})
+        _write_json(stage / "metrics.json", res.metrics)
+        try:
+            out_dir.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"--out {out_dir}: cannot create ({exc.strerror})") from None
+        files = {}
+        for f in sorted(stage.iterdir()):
+            os.replace(f, out_dir / f.name)
+            files[f.name] = out_dir / f.name
+        return files
+    except OSError as exc:
+        raise OutputError(f"--out {out_dir}: write failed ({exc.strerror or exc})") from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

@@ -1,0 +1,35 @@
+"""Headless OpenGL rendering (moderngl over EGL; Mesa llvmpipe on CPU, a GPU when present).
+
+* :func:`get_context` – the shared, cached OpenGL 3.3 context (raises ``RenderError`` if none).
+* :class:`Renderer` – ``Renderer(camera, samples=, background=, lighting=).render(mesh)`` gives a
+  :class:`RenderResult` with ``color`` (H, W, 4) uint8, ``mask`` (H, W) bool and ``depth``
+  (H, W) float32 metres along the view axis, row 0 at the top (Camera.project's pixel grid).
+* :func:`render_views` – front / side / back / top renders around one camera.
+* :func:`render_radial_cubemap` – the radial distance map of a closed mesh (seed 001 §3.5).
+* :func:`to_uint8_rgb` – RGBA composited over a background colour, for previews.
+"""
+
+from treeform.render.context import get_context, release_context
+from treeform.render.cubemap import render_radial_cubemap
+from treeform.render.renderer import (
+    Lighting,
+    Renderer,
+    RenderResult,
+    clear_cache,
+    render_views,
+    to_uint8_rgb,
+    view_camera,
+)
+
+__all__ = [
+    "Lighting",
+    "RenderResult",
+    "Renderer",
+    "clear_cache",
+    "get_context",
+    "release_context",
+    "render_radial_cubemap",
+    "render_views",
+    "to_uint8_rgb",
+    "view_camera",
+]

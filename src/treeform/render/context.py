@@ -1,0 +1,88 @@
+"""The shared headless OpenGL context (moderngl over EGL; Mesa llvmpipe on CPU, a GPU when present).
+
+One context per process is created lazily and cached; every renderer in :mod:`treeform.render`
+draws through it. moderngl contexts are bound to the thread that made them, so render from one
+thread (use processes for parallelism).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+from treeform._shared.errors import RenderError
+
+__all__ = ["get_context", "release_context", "NO_CONTEXT_MESSAGE"]
+
+log = logging.getLogger(__name__)
+
+NO_CONTEXT_MESSAGE = (
+    "no OpenGL context: install Mesa EGL (apt-get install libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)"
+)
+
+_REQUIRED_VERSION = 330  # OpenGL 3.3 core
+_lock = threading.Lock()
+_ctx = None
+
+
+def _create():
+    try:
+        import moderngl
+    except ImportError:  # pragma: no cover - moderngl is a hard dependency
+        raise RenderError(NO_CONTEXT_MESSAGE) from None
+    errors = []
+    for kwargs in ({"backend": "egl"}, {}):
+        try:
+            ctx = moderngl.create_standalone_context(require=_REQUIRED_VERSION, **kwargs)
+        except Exception as exc:  # moderngl raises plain Exception / moderngl.Error
+            errors.append(f"{kwargs.get('backend', 'default')}: {exc}")
+            continue
+        if ctx.version_code < _REQUIRED_VERSION:
+            errors.append(f"{kwargs.get('backend', 'default')}: OpenGL {ctx.version_code} < 3.3")
+            ctx.release()
+            continue
+        # free GL objects when their Python wrappers die (render code also releases explicitly)
+        ctx.gc_mode = "auto"
+        log.debug("OpenGL context: %s, %s", ctx.info.get("GL_RENDERER"), ctx.info.get("GL_VERSION"))
+        return ctx
+    log.debug("OpenGL context creation failed: %s", "; ".join(errors))
+    raise RenderError(NO_CONTEXT_MESSAGE)
+
+
+def get_context():
+    """Return the cached moderngl standalone context, creating it on first use.
+
+    Tries the EGL backend first (headless), then moderngl's default backend.
+
+    Returns
+    -------
+    moderngl.Context
+        An OpenGL >= 3.3 core context.
+
+    Raises
+    ------
+    RenderError
+        If no OpenGL 3.3 context can be created (e.g. Mesa EGL is not installed).
+    """
+    global _ctx
+    if _ctx is not None:
+        return _ctx
+    with _lock:
+        if _ctx is None:
+            _ctx = _create()
+    return _ctx
+
+
+def release_context() -> None:
+    """Release the cached context and every GPU resource the render module cached in it."""
+    global _ctx
+    with _lock:
+        if _ctx is None:
+            return
+        from treeform.render import renderer as _renderer
+
+        _renderer._clear_gpu_state()
+        try:
+            _ctx.release()
+        finally:
+            _ctx = None

@@ -1,0 +1,646 @@
+"""Classical (non-learned) segmentation of one ordinary outdoor photo of a tree.
+
+The automatic path, :func:`segment_tree`, needs no user input. It works in four steps,
+all on a copy of the photo reduced to :data:`WORK_SIDE` pixels on its long side:
+
+1. **Colour and texture cues** per pixel: CIE Lab, chromatic excess green
+   ``(2g - r - b) / (r + g + b)`` and the local standard deviation of log brightness
+   (foliage is textured; sky, lawn and distant tree lines are smooth).
+2. **Sky, ground and bark models.** Sky is blue (negative b*) or matches the colour
+   of smooth bright seeds at the top of the photo, and is connected to them. Ground is
+   everything below a *ground line*, one row per column found by dynamic programming:
+   ground is smooth, coloured like the bottom band of the photo and horizontally
+   extended; vertical bark-coloured runs (trunks) are not ground. Bark is the wood
+   colour model of :func:`wood_colour_mask` (brown / grey, not green, not sky).
+3. **Graph cut.** The main tree is placed on the column where the non-sky skyline
+   rises highest near the centre of the photo. Side tree lines (the skyline drops to a
+   flat level toward a border) and the band just above the ground line away from the
+   trunk (bushes, hedges, lawn) start as probable background; the trunk and the
+   crown interior start as sure foreground; sky and deep ground as sure background.
+   ``cv2.grabCut`` then settles the uncertain pixels with colour models learned from
+   those seeds. The main tree is the connected component holding the seeds.
+4. **Full resolution.** The mask is upsampled and its edge refined with the colour
+   models (a per-pixel Bayes rule whose prior is the upsampled mask), so twigs and sky
+   gaps at the silhouette follow the photo. Wood is labelled with the wood colour
+   model inside the tree, and the trunk found in step 2 is always wood.
+
+:func:`mask_to_segmentation` labels a user-supplied tree mask with the same wood
+colour model.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform.structures.segmentation import BACKGROUND, FOLIAGE, WOOD, Segmentation
+
+__all__ = ["segment_tree", "mask_to_segmentation", "wood_colour_mask", "WORK_SIDE"]
+
+WORK_SIDE = 256
+"""Long side, in pixels, of the reduced copy on which the graph cut runs."""
+
+_MIN_TREE_FRACTION = 0.01
+_GRABCUT_ITERS = 4
+_NBINS = 8 * 16 * 16
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def _check_image(image) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise InputError(f"image: expected an (H, W, 3) RGB array, got shape {img.shape}")
+    if img.dtype != np.uint8:
+        raise InputError(f"image: expected dtype uint8, got {img.dtype}")
+    if min(img.shape[:2]) < 8:
+        raise InputError(f"image: expected at least 8 x 8 pixels, got {img.shape[1]} x {img.shape[0]}")
+    return np.ascontiguousarray(img)
+
+
+# --------------------------------------------------------------------------- features
+
+
+def _features(rgb: np.ndarray, *, texture: bool = True) -> dict:
+    """Per-pixel cues of an (H, W, 3) uint8 RGB image.
+
+    Returns a dict of (H, W) float32 arrays: ``L`` (0..255), ``a`` and ``b`` (centred
+    on 0), ``chroma``, ``exg`` (chromatic excess green) and, when ``texture``, ``tex``
+    (5 x 5 standard deviation of log brightness).
+    """
+    f = rgb.astype(np.float32)
+    s = f.sum(2) + 1.0
+    exg = (2.0 * f[..., 1] - f[..., 0] - f[..., 2]) / s
+    lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
+    L = lab[..., 0]
+    a = lab[..., 1] - 128.0
+    b = lab[..., 2] - 128.0
+    out = dict(exg=exg, L=L, a=a, b=b, chroma=np.hypot(a, b))
+    if texture:
+        ll = np.log(L * (100.0 / 255.0) + 3.0)
+        m = cv2.blur(ll, (5, 5))
+        m2 = cv2.blur(ll * ll, (5, 5))
+        out["tex"] = np.sqrt(np.maximum(m2 - m * m, 0.0))
+    return out
+
+
+def _quantize(F: dict) -> np.ndarray:
+    """(H, W) int32 colour bin in an 8 (L) x 16 (a) x 16 (b) Lab grid."""
+    Lq = np.clip(F["L"] * (8 / 256.0), 0, 7).astype(np.int32)
+    aq = np.clip((F["a"] + 48.0) * (16 / 96.0), 0, 15).astype(np.int32)
+    bq = np.clip((F["b"] + 48.0) * (16 / 96.0), 0, 15).astype(np.int32)
+    return (Lq * 16 + aq) * 16 + bq
+
+
+def _quantize_coarse(F: dict) -> np.ndarray:
+    """(H, W) int32 colour bin in a coarse 4 (L) x 8 (a) x 8 (b) Lab grid."""
+    Lq = np.clip(F["L"] * (4 / 256.0), 0, 3).astype(np.int32)
+    aq = np.clip((F["a"] + 48.0) * (8 / 96.0), 0, 7).astype(np.int32)
+    bq = np.clip((F["b"] + 48.0) * (8 / 96.0), 0, 7).astype(np.int32)
+    return (Lq * 8 + aq) * 8 + bq
+
+
+def _hist_prob(q: np.ndarray, sel: np.ndarray, nbins: int = _NBINS) -> np.ndarray:
+    """(nbins,) colour histogram of ``q[sel]`` with add-one smoothing, summing to 1."""
+    h = np.bincount(q[sel], minlength=nbins).astype(np.float32)
+    return (h + 1.0) / (h.sum() + nbins)
+
+
+# --------------------------------------------------------------------------- masks
+
+
+def _components_touching(mask: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Pixels of ``mask`` in 8-connected components that contain a ``seeds`` pixel."""
+    n, lab = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    hit = np.zeros(n, bool)
+    hit[np.unique(lab[seeds & mask])] = True
+    hit[0] = False
+    return hit[lab]
+
+
+def _largest_cc(mask: np.ndarray, prefer: np.ndarray | None = None) -> np.ndarray:
+    """The largest 8-connected component; pixels in ``prefer`` count 5 times."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return np.zeros(mask.shape, bool)
+    score = stats[1:, cv2.CC_STAT_AREA].astype(np.float64)
+    if prefer is not None:
+        score += 4.0 * np.bincount(lab[prefer & mask], minlength=n)[1:]
+    return lab == 1 + int(np.argmax(score))
+
+
+def _fill_holes(mask: np.ndarray, max_area: float) -> np.ndarray:
+    """Fill background holes of at most ``max_area`` pixels that do not touch the border."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats((~mask).astype(np.uint8), connectivity=4)
+    h, w = mask.shape
+    x, y, ww, hh, area = (stats[:, i] for i in range(5))
+    small = (area <= max_area) & (x > 0) & (y > 0) & (x + ww < w) & (y + hh < h)
+    small[0] = False
+    return mask | small[lab]
+
+
+def _border(shape) -> np.ndarray:
+    b = np.zeros(shape, bool)
+    b[0, :] = b[-1, :] = b[:, 0] = b[:, -1] = True
+    return b
+
+
+def _disc(r: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def _erode(m, k):
+    return cv2.erode(m.astype(np.uint8), k).astype(bool)
+
+
+def _dilate(m, k):
+    return cv2.dilate(m.astype(np.uint8), k).astype(bool)
+
+
+def _open(m, k):
+    return cv2.morphologyEx(m.astype(np.uint8), cv2.MORPH_OPEN, k).astype(bool)
+
+
+# --------------------------------------------------------------------------- colour models
+
+
+def _sky_mask(F: dict) -> np.ndarray:
+    """(H, W) bool sky: blue, or coloured like smooth bright seeds at the top, and smooth."""
+    h, w = F["L"].shape
+    L, b, tex, ch = F["L"], F["b"], F["tex"], F["chroma"]
+    rows = np.arange(h)[:, None]
+    weak_blue = (b < -4) & (L > 50) & (tex < 0.22)
+    strong_blue = (b < -12) & (tex < 0.12)
+    sky = _components_touching(weak_blue, strong_blue)
+    # white, grey or hazy sky: a colour model learnt from smooth bright pixels at the top
+    seeds = (rows < 0.3 * h) & (tex < 0.07) & (L > 110) & ((b < -3) | (ch < 18))
+    seeds = _components_touching(seeds, seeds & (rows < 0.05 * h + 2))
+    if seeds.sum() > 0.002 * h * w:
+        q = _quantize(F)
+        hist = np.bincount(q[seeds], minlength=_NBINS).reshape(8, 16, 16)
+        keep = hist >= max(2.0, 0.002 * seeds.sum())
+        grown = keep.copy()
+        for axis in range(3):
+            for d in (-1, 1):
+                grown |= np.roll(keep, d, axis=axis)
+        colour = grown.reshape(-1)[q]
+        sky |= _components_touching(colour & (tex < 0.15), seeds)
+        # sky seen through gaps (under a crown, beside a trunk): very smooth, sky-coloured
+        very = colour & (tex < 0.06) & ~sky
+        n, lab, st, _ = cv2.connectedComponentsWithStats(very.astype(np.uint8), connectivity=8)
+        big = st[:, cv2.CC_STAT_AREA] >= max(6, 0.001 * h * w)
+        big[0] = False
+        if big.any():
+            sky |= _components_touching(colour & (tex < 0.15), big[lab])
+    return sky
+
+
+def wood_colour_mask(image: np.ndarray) -> np.ndarray:
+    """Pixels coloured like bark: brown, grey or reddish, neither green, yellow nor blue.
+
+    This is the one wood colour model of this module, shared by :func:`segment_tree`
+    and :func:`mask_to_segmentation`.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+        RGB photo.
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+
+    Examples
+    --------
+    >>> px = np.array([[[110, 80, 55], [60, 140, 40]]], np.uint8)  # brown bark, green leaf
+    >>> wood_colour_mask(px).tolist()
+    [[True, False]]
+    """
+    img = _check_image(image) if min(np.shape(image)[:2]) >= 8 else np.asarray(image, np.uint8)
+    return _bark_colour(_features(img, texture=False))
+
+
+def _bark_colour(F: dict) -> np.ndarray:
+    a, b, L, exg = F["a"], F["b"], F["L"], F["exg"]
+    return (a > -7) & (b > -4) & (b < 45) & (exg < 0.16) & (L > 25)
+
+
+def _vertical_bark(bark: np.ndarray) -> np.ndarray:
+    """Bark pixels in tall, narrow vertical runs (trunks)."""
+    h, w = bark.shape
+    kv = cv2.getStructuringElement(cv2.MORPH_RECT, (1, max(3, int(0.12 * h))))
+    kh = cv2.getStructuringElement(cv2.MORPH_RECT, (max(3, int(0.25 * w)), 1))
+    return _open(bark, kv) & ~_open(bark, kh)
+
+
+# --------------------------------------------------------------------------- ground
+
+
+def _ground_evidence(F: dict, sky: np.ndarray, vbark: np.ndarray) -> np.ndarray:
+    """(H, W) float32: > 0 where a pixel looks like ground (lawn, path, meadow)."""
+    h, w = sky.shape
+    texb = cv2.blur(F["tex"], (7, 7))
+    rows = np.arange(h)[:, None]
+    upper = (rows >= int(0.05 * h)) & (rows < int(0.45 * h)) & ~sky
+    ref = np.median(texb[upper]) if upper.sum() > 50 else np.median(texb[~sky]) if (~sky).any() else 0.0
+    tex_rel = texb / max(float(ref), 0.03)
+    smooth_ev = np.clip((0.65 - tex_rel) / 0.3, -1.0, 1.0)
+    q = _quantize(F)
+    bottom = (rows >= int(0.92 * h)) & ~sky
+    col_ev = np.zeros_like(smooth_ev)
+    if bottom.sum() > 20 and upper.sum() > 20:
+        ratio = _hist_prob(q, bottom)[q] / _hist_prob(q, upper)[q]
+        col_ev = np.clip(np.log(ratio) / 2.0, -1.5, 1.0)
+    e = smooth_ev + col_ev - 0.6 * (1.0 - rows / h) ** 2 - 3.0 * vbark
+    e[sky] = -1.0
+    return e.astype(np.float32)
+
+
+def _ground_line(e: np.ndarray, lam: float = 1.0) -> np.ndarray:
+    """Per column x the first ground row ``g[x]`` (``H`` = no ground visible).
+
+    Maximises ``sum_x sum_{y >= g[x]} e[y, x] - lam * sum_x |g[x] - g[x-1]|`` exactly by
+    dynamic programming (the L1 transition is two running maxima per column).
+    """
+    h, w = e.shape
+    s = np.zeros((h + 1, w), np.float32)
+    s[:h] = np.cumsum(e[::-1], axis=0)[::-1]
+    ys = np.arange(h + 1, dtype=np.float32)
+    dp = np.empty((w, h + 1), np.float32)
+    dp[0] = s[:, 0]
+    for x in range(1, w):
+        p = dp[x - 1]
+        fwd = np.maximum.accumulate(p + lam * ys) - lam * ys
+        bwd = np.maximum.accumulate((p - lam * ys)[::-1])[::-1] + lam * ys
+        dp[x] = np.maximum(fwd, bwd) + s[:, x]
+    g = np.empty(w, np.int32)
+    g[-1] = int(np.argmax(dp[-1]))
+    for x in range(w - 1, 0, -1):
+        g[x - 1] = int(np.argmax(dp[x - 1] - lam * np.abs(ys - g[x])))
+    return g
+
+
+# --------------------------------------------------------------------------- main tree
+
+
+def _skyline(cand: np.ndarray) -> np.ndarray:
+    """(W,) float32: first non-sky, non-ground row per column (H where none)."""
+    h, w = cand.shape
+    t = np.where(cand.any(0), np.argmax(cand, axis=0), h).astype(np.float32)
+    return cv2.medianBlur(t.reshape(1, -1), 5).ravel()
+
+
+def _main_axis(t: np.ndarray, h: int) -> int:
+    """Column of the main tree: the skyline rises highest there, near the centre."""
+    w = t.size
+    xs = (np.arange(w) + 0.5) / w
+    score = (h - t) * (1.0 - np.abs(xs - 0.5))
+    score = cv2.GaussianBlur(score.reshape(1, -1).astype(np.float32), (0, 0), sigmaX=max(1.0, 0.02 * w)).ravel()
+    return int(np.argmax(score))
+
+
+def _side_zones(t: np.ndarray, ax: int, h: int, w: int):
+    """Probable / sure background beside the crown where the skyline drops to a tree line.
+
+    On each side, the skyline at the image border gives the level of a side tree line;
+    walking out from the axis, the knee is where the skyline reaches that level. Below
+    the level and beyond the knee lies the tree line, not the main crown.
+    """
+    rows = np.arange(h)[:, None]
+    cols = np.arange(w)[None, :]
+    pr = np.zeros((h, w), bool)
+    bg = np.zeros((h, w), bool)
+    bw = max(2, int(0.08 * w))
+    m = int(0.03 * w)
+    for side in (-1, 1):
+        level = float(np.median(t[:bw] if side < 0 else t[-bw:]))
+        if level - float(t[ax]) < 0.15 * h:
+            continue
+        xs = np.arange(ax, -1, -1) if side < 0 else np.arange(ax, w)
+        hit = np.nonzero(t[xs] >= level - 0.04 * h)[0]
+        if hit.size == 0:
+            continue
+        knee = int(xs[hit[0]])
+        rest = t[:knee + 1] if side < 0 else t[knee:]
+        if rest.size and float(np.std(rest)) > 0.06 * h:
+            continue  # not a flat tree line beyond the knee: maybe the crown's own skirt
+        beyond = (cols < knee - m) if side < 0 else (cols > knee + m)
+        far = (cols < knee - m - int(0.12 * w)) if side < 0 else (cols > knee + m + int(0.12 * w))
+        pr |= beyond & (rows > level - 0.02 * h)
+        bg |= far & (rows > level)
+    return pr, bg
+
+
+def _colour_neighbours(F: dict, cand: np.ndarray, crown: np.ndarray, ax: int) -> np.ndarray:
+    """Neighbouring trees of another colour than the main crown.
+
+    Chromaticity (a*, b*) histograms of the top of the main crown and of the non-sky
+    pixels far from the axis; large regions away from the axis whose colours are far
+    more likely under the second model are neighbours (yellow beside green, purple
+    beside yellow, a dark conifer beside a light crown). Dark pixels are left alone
+    (shadows look alike in every tree).
+    """
+    h, w = cand.shape
+    cols = np.arange(w)[None, :]
+    lit = F["L"] >= 20
+    far = cand & lit & (np.abs(cols - ax) > 0.25 * w)
+    crown = crown & lit
+    if crown.sum() < 20 or far.sum() < 0.01 * h * w:
+        return np.zeros((h, w), bool)
+    aq = np.clip((F["a"] + 48.0) * (12 / 96.0), 0, 11).astype(np.int32)
+    bq = np.clip((F["b"] + 48.0) * (12 / 96.0), 0, 11).astype(np.int32)
+    q = aq * 12 + bq
+    lr = np.log(_hist_prob(q, far, 144)[q] / _hist_prob(q, crown, 144)[q])
+    unlike = cand & lit & (lr > np.log(4.0)) & (np.abs(cols - ax) > 0.05 * w)
+    unlike = _open(cv2.medianBlur(unlike.astype(np.uint8), 5).astype(bool), np.ones((3, 3), np.uint8))
+    n, lab, st, _ = cv2.connectedComponentsWithStats(unlike.astype(np.uint8), connectivity=8)
+    big = st[:, cv2.CC_STAT_AREA] >= 0.01 * h * w
+    big[0] = False
+    return big[lab]
+
+
+def _find_trunk(F: dict, cand: np.ndarray, g: np.ndarray, ax: int):
+    """The main trunk(s): vertical runs of wood-coloured pixels that stand on the ground.
+
+    Wood colour is judged against the tree's own foliage (:func:`_wood_in_tree`), so the
+    grey-green needles of a conifer do not pass. Among the runs whose bottom reaches the
+    ground line, the tallest close to the axis wins; other standing runs within 15 % of
+    the width from it (multi-stemmed trees) are kept too.
+
+    Returns the (h, w) bool trunk pixels and the trunk column.
+    """
+    h, w = cand.shape
+    vb = _vertical_bark(_wood_in_tree(F, cand, threshold=1.0)) & cand
+    n, lab, st, cen = cv2.connectedComponentsWithStats(vb.astype(np.uint8), connectivity=8)
+    standing, score = [], []
+    for k in range(1, n):
+        y0, hh = st[k, cv2.CC_STAT_TOP], st[k, cv2.CC_STAT_HEIGHT]
+        xc = int(np.clip(cen[k][0], 0, w - 1))
+        if y0 + hh < min(g[xc], h) - 0.05 * h or abs(xc - ax) > 0.3 * w:
+            continue
+        standing.append((k, xc))
+        score.append(hh * (1.0 - abs(xc - ax) / w))
+    if not standing:
+        return np.zeros((h, w), bool), ax
+    best = int(np.argmax(score))
+    tx = standing[best][1]
+    keep = np.zeros(n, bool)
+    for k, xc in standing:
+        keep[k] = abs(xc - tx) <= 0.15 * w
+    return keep[lab], tx
+
+
+def _grabcut_image(F: dict) -> np.ndarray:
+    """(h, w, 3) uint8 feature image for the graph cut: texture, a*, b* (stretched)."""
+    t = np.clip(F["tex"] * 600.0, 0, 255)
+    a = np.clip(F["a"] * 2.0 + 128.0, 0, 255)
+    b = np.clip(F["b"] * 2.0 + 128.0, 0, 255)
+    return np.ascontiguousarray(np.dstack([t, a, b]).astype(np.uint8))
+
+
+def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
+    """Tree mask and trunk pixels on the reduced photo (both (h, w) bool)."""
+    F = _features(small)
+    hs, ws = F["L"].shape
+    rows = np.arange(hs)[:, None]
+    cols = np.arange(ws)[None, :]
+    sky = _sky_mask(F)
+    bark = _bark_colour(F) & ~sky
+    vbark = _vertical_bark(bark)
+    g = _ground_line(_ground_evidence(F, sky, vbark))
+    ground = rows >= g[None, :]
+    cand = _open(~sky & ~ground, np.ones((2, 2), np.uint8))
+    if cand.sum() < _MIN_TREE_FRACTION * hs * ws:
+        raise NoTreeFoundError("no tree found in the photo (it is sky, ground or uniform)")
+
+    t = _skyline(cand)
+    ax = _main_axis(t, hs)
+    side_pr, side_bg = _side_zones(t, ax, hs, ws)
+    ytop = int(t[ax])
+    gmed = float(np.median(g))
+    core = cand & (np.abs(cols - ax) < 0.08 * ws) & (rows > ytop + 0.05 * hs)
+    core &= rows < ytop + 0.35 * max(gmed - ytop, 1.0)
+    core = _erode(core, np.ones((3, 3), np.uint8))
+    trunk, tx = _find_trunk(F, cand, g, ax)
+    texb = cv2.blur(F["tex"], (5, 5))
+    ref = float(np.median(texb[cand]))
+    sure0 = cand & (rows < g[None, :] - 4) & (texb > 0.6 * ref)
+    crown_top = cand & (np.abs(cols - ax) < 0.15 * ws) & (rows < ytop + 0.3 * max(gmed - ytop, 1.0))
+    nbr = _colour_neighbours(F, cand, crown_top, ax)
+    # band just above the ground line, away from the trunk: bushes, hedges, lawn edges
+    low = cand & (rows > g[None, :] - 0.12 * hs) & (np.abs(cols - tx) > 0.06 * ws)
+    low_far = low & (np.abs(cols - tx) > 0.3 * ws)
+    # below a side-connected gap of sky, away from the trunk: bushes, hedges, tree lines
+    border_sky = _components_touching(sky, _border(sky.shape))
+    last_sky = np.where(border_sky.any(0), hs - 1 - np.argmax(border_sky[::-1], axis=0), -1)
+    below_sky = cand & (rows > last_sky[None, :]) & (last_sky[None, :] > 0.5 * hs)
+    below_sky &= np.abs(cols - tx) > 0.06 * ws
+    sure = sure0 & ~side_pr & ~low & ~below_sky & ~nbr
+    sure = _erode(sure, _disc(2))
+    # the low band reaching a side border in its row (a hedge, a line of bushes) is
+    # background for sure; elsewhere (a crown skirt?) the graph cut decides
+    lowc = cv2.morphologyEx(low.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((1, 5), np.uint8)).astype(bool)
+    low_side = np.cumprod(lowc, axis=1).astype(bool) | np.cumprod(lowc[:, ::-1], axis=1)[:, ::-1].astype(bool)
+    sure_bg = (low & (low_side | low_far)) | below_sky | (cand & side_bg) | nbr
+    sure_bg &= ~_dilate(sure | core | trunk, _disc(3))
+
+    gc = np.full((hs, ws), cv2.GC_PR_BGD, np.uint8)
+    gc[cand] = cv2.GC_PR_FGD
+    gc[cand & side_pr] = cv2.GC_PR_BGD
+    gc[low] = cv2.GC_PR_BGD
+    gc[below_sky | nbr] = cv2.GC_PR_BGD
+    gc[sure_bg] = cv2.GC_BGD
+    gc[sure | core | trunk] = cv2.GC_FGD
+    gc[sky] = cv2.GC_BGD
+    gc[rows >= g[None, :] + 3] = cv2.GC_BGD
+    gc_init = gc.copy()
+    cv2.setRNGSeed(seed)
+    bgd = np.zeros((1, 65), np.float64)
+    fgd = np.zeros((1, 65), np.float64)
+    feat = _grabcut_image(F)
+    # one flat colour for the sky: the background colour model then spends its
+    # components on lawn, bushes and tree lines instead of shades of sky
+    feat[sky] = (0, 128, 0)
+    cv2.grabCut(feat, gc, None, bgd, fgd, _GRABCUT_ITERS, cv2.GC_INIT_WITH_MASK)
+    fg = (gc == cv2.GC_FGD) | (gc == cv2.GC_PR_FGD)
+    fg = _open(fg, np.ones((2, 2), np.uint8)) | trunk
+    # thin twigs and branches in front of the sky that the graph cut smoothed away
+    thin = cand & ~_open(cand, np.ones((5, 5), np.uint8)) & _dilate(sky, np.ones((5, 5), np.uint8))
+    fg = _components_touching(fg | thin, fg)
+    mask = _largest_cc(fg, prefer=core | trunk)
+    mask = _fill_holes(mask, 0.002 * hs * ws)
+    trunk &= mask
+    if debug is not None:
+        debug.update(F=F, small=small, sky=sky, ground=ground, g=g, axis=ax, trunk_x=tx,
+                     side=(side_pr & cand) | below_sky, nbr=nbr, low=low, core=core, trunk=trunk, gc_init=gc_init, gc=gc)
+    return mask, trunk, sky
+
+
+# --------------------------------------------------------------------------- full resolution
+
+
+def _refine_full(img: np.ndarray, small: np.ndarray, ms: np.ndarray, sky_s: np.ndarray):
+    """Upsample the reduced mask and snap its edge to the photo's colours.
+
+    Returns the full-resolution (H, W) bool mask and the (H, W) float32 colour
+    posterior used for alpha.
+    """
+    h, w = img.shape[:2]
+    hs, ws = ms.shape
+    Fs = _features(small, texture=False)
+    qs = _quantize(Fs)
+    pf = _hist_prob(qs, _erode(ms, np.ones((3, 3), np.uint8)) & ~sky_s)
+    pb = _hist_prob(qs, ~_dilate(ms, np.ones((3, 3), np.uint8)))
+    ratio = pf / pb
+    prior = cv2.resize(ms.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    sig = 0.6 * max(h / hs, w / ws)
+    prior = cv2.GaussianBlur(prior, (0, 0), sigmaX=sig)
+    prior = np.clip(prior, 0.0, 0.97)
+    Ff = _features(img, texture=False)
+    r = ratio[_quantize(Ff)]
+    post = prior * r / (prior * r + (1.0 - prior) + 1e-6)
+    mask = post > 0.5
+    return mask, post.astype(np.float32)
+
+
+def _wood_in_tree(F: dict, mask: np.ndarray, *, threshold: float = 2.0) -> np.ndarray:
+    """Wood colour model inside a tree mask: bark colours, clearly redder and less green
+    than the tree's own foliage (its median colour), so that grey-green conifer needles
+    and leaf shadows stay foliage. A tree that is mostly bark-coloured (leafless) keeps
+    the plain bark rule.
+    """
+    bark = _bark_colour(F) & mask
+    if not mask.any() or bark[mask].mean() > 0.5:
+        return bark
+    a_f = float(np.median(F["a"][mask]))
+    g_f = float(np.median(F["exg"][mask]))
+    score = (F["a"] - a_f) / 4.0 + (g_f - F["exg"]) / 0.06
+    return bark & (score > threshold)
+
+
+def _label(img: np.ndarray, mask: np.ndarray, trunk: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) uint8 labels: 0 outside ``mask``, 2 on wood-coloured or trunk pixels, else 1."""
+    h, w = mask.shape
+    F = _features(img, texture=False)
+    wood = _wood_in_tree(F, mask)
+    k = max(1, int(round(min(h, w) / 300)))
+    wood = cv2.medianBlur(wood.astype(np.uint8), 2 * k + 1).astype(bool) & mask
+    # drop isolated specks
+    n, lab, st, _ = cv2.connectedComponentsWithStats(wood.astype(np.uint8), connectivity=8)
+    keep = st[:, cv2.CC_STAT_AREA] >= max(4, int(2e-5 * h * w))
+    keep[0] = False
+    wood = keep[lab]
+    if trunk is not None:
+        wood |= trunk & mask
+    labels = np.where(mask, FOLIAGE, BACKGROUND).astype(np.uint8)
+    labels[wood] = WOOD
+    return labels
+
+
+def _trunk_full(img: np.ndarray, mask: np.ndarray, trunk_s: np.ndarray) -> np.ndarray:
+    """The trunk at full resolution: upsampled trunk pixels, grown into bark-coloured mask pixels."""
+    h, w = mask.shape
+    if not trunk_s.any():
+        return np.zeros((h, w), bool)
+    t = cv2.resize(trunk_s.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
+    k = max(3, int(round(2 * max(h, w) / WORK_SIDE)) | 1)
+    return _dilate(t, np.ones((k, k), np.uint8)) & mask
+
+
+# --------------------------------------------------------------------------- public API
+
+
+def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
+    """Segment the one main tree of an ordinary outdoor photo, without user input.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+        RGB photo, up to about 1000 pixels on its long side (reduce larger photos first).
+    seed : int, optional
+        Seed of OpenCV's random generator, set before the graph cut; the same photo and
+        seed give the same labels.
+
+    Returns
+    -------
+    Segmentation
+        ``labels`` (H, W) uint8: 0 background, 1 foliage, 2 wood, for the main tree only;
+        ``alpha`` (H, W) float32 in [0, 1]: soft tree coverage (the mask, softened at
+        its edge by the colour posterior).
+
+    Raises
+    ------
+    InputError
+        ``image`` is not an (H, W, 3) uint8 array.
+    NoTreeFoundError
+        The photo shows no tree (uniform, all sky or ground, or the tree covers less
+        than 1 % of it).
+
+    Notes
+    -----
+    Colour / texture models of sky, ground, foliage and bark, a ground line by dynamic
+    programming, GrabCut (Rother et al. 2004) on a reduced copy, upsampling with a
+    colour-posterior edge refinement; see the module docstring.
+    """
+    img = _check_image(image)
+    if float(img.reshape(-1, 3).std(0).max()) < 2.0:
+        raise NoTreeFoundError("no tree found in the photo (the image is uniform)")
+    h, w = img.shape[:2]
+    sc = min(1.0, WORK_SIDE / max(h, w))
+    size = (max(8, round(w * sc)), max(8, round(h * sc)))
+    small = cv2.resize(img, size, interpolation=cv2.INTER_AREA) if sc < 1.0 else img.copy()
+    ms, trunk_s, sky_s = _coarse_mask(small, seed)
+    mask, post = _refine_full(img, small, ms, sky_s)
+    mask = _largest_cc(mask)
+    mask = _fill_holes(mask, 0.0005 * h * w)
+    if mask.sum() < _MIN_TREE_FRACTION * h * w:
+        raise NoTreeFoundError("no tree found in the photo (the tree region covers under 1 % of it)")
+    trunk = _trunk_full(img, mask, trunk_s)
+    labels = _label(img, mask, trunk)
+    alpha = np.where(mask, np.maximum(post, 0.5), np.minimum(post, 0.5))
+    alpha = cv2.GaussianBlur(alpha.astype(np.float32), (3, 3), 0)
+    alpha = np.clip(alpha, 0.0, 1.0)
+    alpha[labels == BACKGROUND] = np.minimum(alpha[labels == BACKGROUND], 0.49)
+    return Segmentation(labels, alpha)
+
+
+def mask_to_segmentation(mask: np.ndarray, image: np.ndarray) -> Segmentation:
+    """Label a user-supplied tree mask: wood where bark-coloured, foliage elsewhere.
+
+    Parameters
+    ----------
+    mask : ndarray, shape (H, W), bool or uint8
+        The tree (True / non-zero, e.g. white = 255) on background (False / 0).
+    image : ndarray, shape (H, W, 3), uint8
+        The RGB photo the mask belongs to.
+
+    Returns
+    -------
+    Segmentation
+        ``labels`` 0 background, 1 foliage, 2 wood (same wood colour model as
+        :func:`segment_tree`); ``alpha`` the mask as 0 / 1.
+
+    Raises
+    ------
+    InputError
+        ``mask`` is not 2-D or its size differs from the image's.
+    NoTreeFoundError
+        The mask is empty.
+    """
+    img = _check_image(image)
+    m = np.asarray(mask)
+    if m.ndim == 3 and m.shape[2] in (1, 3, 4):
+        m = m[..., 0]
+    if m.ndim != 2:
+        raise InputError(f"mask: expected an (H, W) array, got shape {m.shape}")
+    if m.shape != img.shape[:2]:
+        raise InputError(
+            f"mask: size {m.shape[1]} x {m.shape[0]} does not match the image's {img.shape[1]} x {img.shape[0]}"
+        )
+    m = m > (127 if m.dtype == np.uint8 and m.max() > 1 else 0)
+    if not m.any():
+        raise NoTreeFoundError("no tree found in the mask (it is empty)")
+    labels = _label(img, m)
+    return Segmentation(labels, m.astype(np.float32))

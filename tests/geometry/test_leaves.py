@@ -1,0 +1,96 @@
+"""leaf_texture and leaf_cards."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_foliage, random_parent_tree
+
+from treeform._shared.errors import InputError
+from treeform.geometry import leaf_cards, leaf_texture, texture_coverage
+from treeform.structures import Foliage
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_cluster_texture_coverage_and_alpha(seed):
+    t = leaf_texture(128, seed=seed)
+    assert t.shape == (128, 128, 4) and t.dtype == np.uint8
+    cov = texture_coverage(t)
+    assert 0.55 <= cov <= 0.75, cov
+    a = t[..., 3]
+    assert (a == 0).any() and (a == 255).any()
+    assert ((a > 0) & (a < 255)).any()  # antialiased edges
+    # light, slightly green texels so the card colour tints them
+    opaque = t[a > 127, :3].astype(float)
+    assert opaque.mean() > 0.75 * 255
+    assert opaque[:, 1].mean() >= opaque[:, 0].mean() and opaque[:, 1].mean() >= opaque[:, 2].mean()
+    assert opaque.std(axis=0).max() > 3  # shading variation, not a flat colour
+    # transparent texels carry the leaf colour (no dark fringe when filtered)
+    assert t[a == 0, :3].mean() > 0.6 * 255
+
+
+def test_texture_kinds_sizes_and_determinism():
+    leaf = leaf_texture(64, kind="leaf")
+    assert 0.2 < texture_coverage(leaf) < 0.6
+    assert leaf[..., 3][0, 0] == 0 and leaf[32, 32, 3] == 255  # corner empty, middle leaf
+    assert np.array_equal(leaf_texture(64, seed=5), leaf_texture(64, seed=5))
+    assert not np.array_equal(leaf_texture(64, seed=5), leaf_texture(64, seed=6))
+    for size in (16, 256):
+        assert 0.55 <= texture_coverage(leaf_texture(size)) <= 0.75
+    with pytest.raises(InputError, match="kind"):
+        leaf_texture(kind="needle")
+    with pytest.raises(InputError, match="size"):
+        leaf_texture(2)
+
+
+def test_cards_counts_and_material():
+    f = random_foliage(random_parent_tree(50), 37)
+    p = leaf_cards(f)
+    assert p.n_vertices == 4 * 37 and p.n_triangles == 2 * 37
+    assert p.name == "leaves"
+    mat = p.material
+    assert mat.name == "leaves" and mat.alpha_mode == "MASK" and mat.alpha_cutoff == 0.5 and mat.double_sided
+    assert mat.texture.shape == (128, 128, 4)
+    assert np.allclose(p.colors[:, :3], np.repeat(f.color, 4, axis=0))
+    assert np.all(p.colors[:, 3] == 1)
+    tex = leaf_texture(32, kind="leaf")
+    assert np.array_equal(leaf_cards(f, texture=tex).material.texture, tex)
+
+
+def test_card_geometry():
+    f = random_foliage(random_parent_tree(50), 25, seed=4)
+    p = leaf_cards(f)
+    q = p.positions.reshape(-1, 4, 3).astype(np.float64)
+    assert np.allclose(q.mean(axis=1), f.positions, atol=1e-6)
+    e1 = q[:, 1] - q[:, 0]
+    e2 = q[:, 3] - q[:, 0]
+    assert np.allclose(np.linalg.norm(e1, axis=1), f.size, rtol=1e-5)
+    assert np.allclose(np.linalg.norm(e2, axis=1), f.size, rtol=1e-5)
+    # spanned by up and cross(normal, up); the up edge is along up
+    assert np.allclose(e2 / f.size[:, None], f.up, atol=1e-5)
+    side = np.cross(f.normals, f.up)
+    assert np.allclose(np.abs(np.sum(e1 / f.size[:, None] * side, axis=1)), 1, atol=1e-5)
+    # vertex normals and face normals equal the foliage normal
+    assert np.allclose(p.normals.reshape(-1, 4, 3), f.normals[:, None, :], atol=1e-6)
+    tri = p.positions[p.indices.astype(np.int64)].astype(np.float64)
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    assert np.allclose(fn, np.repeat(f.normals, 2, axis=0), atol=1e-4)
+    # UVs: (0,1) bottom-left ... texture's top at +up
+    assert np.allclose(p.uvs.reshape(-1, 4, 2)[0], [[0, 1], [1, 1], [1, 0], [0, 0]])
+
+
+def test_cards_edge_cases():
+    empty = leaf_cards(Foliage.empty())
+    assert empty.n_vertices == 0 and empty.n_triangles == 0
+    # up not orthogonal (or parallel) to the normal is repaired
+    f = Foliage([[0, 0, 0], [1, 0, 0]], [[0, 0, 1], [0, 1, 0]], [[0, 1, 0.5], [0, 1, 0]], [1, 1], [[0.1, 0.5, 0.1]] * 2)
+    p = leaf_cards(f)
+    assert np.all(np.isfinite(p.positions))
+    tri = p.positions[p.indices.astype(np.int64)].astype(np.float64)
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.allclose(fn / np.linalg.norm(fn, axis=1, keepdims=True), np.repeat(f.normals, 2, axis=0), atol=1e-6)
+    with pytest.raises(InputError, match="foliage"):
+        leaf_cards("leaves")
+    with pytest.raises(InputError, match="size_scale"):
+        leaf_cards(f, size_scale=[1.0])

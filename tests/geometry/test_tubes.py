@@ -1,0 +1,243 @@
+"""branch_mesh: counts, geometry of the rings, frames, caps, UVs, the bark texture."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import grown_tree, random_parent_tree, y_tree
+
+from treeform._shared.errors import InputError
+from treeform.geometry import MIN_RING_RADIUS, bark_texture, branch_mesh, tube_triangle_count
+from treeform.structures import TreeSkeleton
+
+trimesh = pytest.importorskip("trimesh")
+
+
+def two_node() -> TreeSkeleton:
+    return TreeSkeleton(np.array([[0, 0, 0], [0.1, 1, 0.]]), np.array([-1, 0]), np.array([0.1, 0.05]))
+
+
+def one_node() -> TreeSkeleton:
+    return TreeSkeleton(np.zeros((1, 3)), np.array([-1]), np.array([0.1]))
+
+
+SKELETONS = {"y": y_tree, "random": random_parent_tree, "two": two_node, "grown": lambda: grown_tree(400)}
+
+
+def chain_layout(s: TreeSkeleton):
+    """Ring nodes in mesh order, per-chain lengths, and the expected ring radius."""
+    chains = s.chains()
+    lens = np.array([len(c) for c in chains])
+    nodes = np.concatenate(chains)
+    start = np.cumsum(lens) - lens
+    r = np.maximum(s.radius[nodes], MIN_RING_RADIUS)
+    side = start[1:]
+    r[side] = np.minimum(r[side], r[side + 1])
+    return chains, lens, nodes, start, r
+
+
+def merged(positions, faces):
+    u, inv = np.unique(positions, axis=0, return_inverse=True)
+    return trimesh.Trimesh(u, inv.reshape(-1)[faces], process=False)
+
+
+@pytest.mark.parametrize("name", list(SKELETONS))
+@pytest.mark.parametrize("segs", [3, 5, 8])
+def test_triangle_count_formula(name, segs):
+    s = SKELETONS[name]()
+    lens = np.array([len(c) for c in s.chains()])
+    m = branch_mesh(s, radial_segments=segs)
+    # per chain: 2·S·(R-1) sides + S cone; + S for the root fan
+    assert m.n_triangles == segs * (int(np.sum(2 * (lens - 1) + 1)) + 1)
+    assert m.n_triangles == tube_triangle_count(lens, segs)
+    assert m.n_vertices == lens.sum() * (segs + 1) + len(lens) + (segs + 2)
+    mc = branch_mesh(s, radial_segments=segs, cap_starts=True)
+    assert mc.n_triangles == m.n_triangles + segs * (len(lens) - 1)
+
+
+def test_y_tree_counts_by_hand():
+    m = branch_mesh(y_tree(), radial_segments=6)
+    # chains [0,1,2] and [1,3]: (2·6·2 + 6 + 6) + (2·6·1 + 6)
+    assert m.n_triangles == 36 + 18
+    assert m.material.name == "bark" and m.material.alpha_mode == "OPAQUE"
+    assert m.material.texture.shape[2] == 4 and m.material.texture.dtype == np.uint8
+
+
+def test_single_node_gives_empty_part():
+    m = branch_mesh(one_node())
+    assert m.n_vertices == 0 and m.n_triangles == 0
+    m.validate()
+
+
+@pytest.mark.parametrize("name", list(SKELETONS))
+def test_finite_unit_normals(name):
+    m = branch_mesh(SKELETONS[name]())
+    for a in (m.positions, m.normals, m.uvs, m.colors):
+        assert np.all(np.isfinite(a))
+    assert np.allclose(np.linalg.norm(m.normals, axis=1), 1.0, atol=1e-5)
+    assert m.uvs[:, 0].min() >= 0 and m.uvs[:, 0].max() <= 1
+    assert m.indices.max() < m.n_vertices
+
+
+@pytest.mark.parametrize("name", ["y", "random", "two", "grown"])
+def test_ring_vertices_at_radius_and_mitred(name):
+    s = SKELETONS[name]()
+    segs = 7
+    chains, lens, nodes, start, r = chain_layout(s)
+    m = branch_mesh(s, radial_segments=segs)
+    ring = m.positions[: len(nodes) * (segs + 1)].reshape(len(nodes), segs + 1, 3).astype(np.float64)
+    off = ring - s.positions[nodes][:, None, :]
+    dist = np.linalg.norm(off, axis=2)
+    assert np.allclose(dist, r[:, None], rtol=1e-4, atol=2e-6)
+    # seam vertex duplicates the first one (u = 0 and u = 1)
+    assert np.array_equal(ring[:, 0], ring[:, -1])
+    # interior rings lie in the plane normal to the mean of the adjacent segment directions
+    for c, k in zip(chains, start):
+        p = s.positions[c]
+        d = np.diff(p, axis=0)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        t = d[:-1] + d[1:]
+        ok = np.linalg.norm(t, axis=1) > 1e-3
+        t = t[ok] / np.linalg.norm(t[ok], axis=1, keepdims=True)
+        o = off[k + 1: k + len(c) - 1][ok]
+        assert np.allclose(np.einsum("rsj,rj->rs", o, t), 0.0, atol=1e-5)
+
+
+def test_vertices_within_radius_of_segments():
+    s = random_parent_tree(200, seed=3)
+    m = branch_mesh(s, radial_segments=6)
+    seg_a = s.positions[s.parent[1:]]
+    seg_b = s.positions[1:]
+    rmax = np.maximum(s.radius[s.parent[1:]], s.radius[1:]).max()
+    # distance of every vertex to the nearest segment (brute force on a small tree)
+    p = m.positions.astype(np.float64)[:, None, :]
+    ab = seg_b - seg_a
+    t = np.clip(np.sum((p - seg_a) * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0, 1)
+    d = np.linalg.norm(p - (seg_a + t[..., None] * ab), axis=2).min(axis=1)
+    assert d.max() <= max(rmax, MIN_RING_RADIUS) * (1 + 1e-4) + 1e-6
+
+
+@pytest.mark.parametrize("name", ["y", "random", "grown", "two"])
+def test_every_tube_watertight_when_capped(name):
+    s = SKELETONS[name]()
+    segs = 6
+    lens = np.array([len(c) for c in s.chains()])
+    m = branch_mesh(s, radial_segments=segs, cap_starts=True)
+    per_chain = segs * (2 * (lens - 1) + 2)
+    edges = np.concatenate([[0], np.cumsum(per_chain)])
+    assert edges[-1] == m.n_triangles
+    for i in range(len(lens)):
+        f = m.indices[edges[i]:edges[i + 1]].astype(np.int64)
+        tm = merged(m.positions, f)
+        assert tm.is_watertight, f"chain {i}"
+        assert tm.is_winding_consistent
+        assert tm.volume > 0  # outward-facing
+    # the whole mesh too: every edge shared by exactly two faces
+    tm = merged(m.positions, m.indices.astype(np.int64))
+    assert tm.is_watertight
+
+
+def test_uncapped_side_tubes_open_only_inside_parent():
+    s = y_tree()
+    segs = 8
+    m = branch_mesh(s, radial_segments=segs)
+    lens = np.array([len(c) for c in s.chains()])
+    n0 = segs * (2 * (lens[0] - 1) + 2)
+    assert merged(m.positions, m.indices[:n0].astype(np.int64)).is_watertight  # trunk chain: capped
+    side = merged(m.positions, m.indices[n0:].astype(np.int64))
+    boundary = side.edges_sorted[trimesh.grouping.group_rows(side.edges_sorted, require_count=1)]
+    assert len(boundary) == segs
+    # the open ring sits at the parent node (node 1), inside the parent tube (radius 0.08),
+    # with the side child's radius (node 2: 0.03; node 3, the thicker, continues the trunk)
+    verts = side.vertices[np.unique(boundary)]
+    assert np.allclose(np.linalg.norm(verts - s.positions[1], axis=1), 0.03, atol=1e-6)
+
+
+def test_parallel_transport_does_not_twist():
+    # a planar arc in the XY plane: the transported frame keeps a constant Z component
+    a = np.linspace(0, np.pi * 0.8, 40)
+    pos = np.stack([np.sin(a), 1 - np.cos(a), np.zeros_like(a)], axis=1) * 2
+    s = TreeSkeleton(pos, np.arange(-1, 39), np.full(40, 0.05))
+    m = branch_mesh(s, radial_segments=8)
+    ring = m.positions[: 40 * 9].reshape(40, 9, 3).astype(np.float64)
+    z = (ring[:, :, 2] - pos[:, None, 2]) / 0.05
+    assert np.allclose(z, z[0][None, :], atol=1e-4)
+    # a straight line: every ring is a translate of the first
+    s2 = TreeSkeleton(np.outer(np.arange(30), [0.1, 1.0, 0.2]), np.arange(-1, 29), np.full(30, 0.05))
+    m2 = branch_mesh(s2, radial_segments=5)
+    ring2 = m2.positions[: 30 * 6].reshape(30, 6, 3) - s2.positions[:, None, :]
+    assert np.allclose(ring2, ring2[0][None], atol=1e-5)
+
+
+def test_uv_v_is_length_over_circumference():
+    s = two_node()
+    m = branch_mesh(s, radial_segments=4)
+    v = m.uvs[:10, 1].reshape(2, 5)
+    length = np.linalg.norm(s.positions[1] - s.positions[0])
+    assert np.allclose(v[0], 0.0)
+    assert np.allclose(v[1], length / (2 * np.pi * 0.075), rtol=1e-5)
+    u = m.uvs[:5, 0]
+    assert np.allclose(u, [0, 0.25, 0.5, 0.75, 1.0])
+    # along every chain of a random tree, v never decreases
+    s = random_parent_tree(300)
+    _, lens, nodes, start, _ = chain_layout(s)
+    mm = branch_mesh(s, radial_segments=3)
+    vv = mm.uvs[: len(nodes) * 4, 1].reshape(len(nodes), 4)[:, 0]
+    dv = np.diff(vv)
+    inside = np.ones(len(nodes) - 1, bool)
+    inside[start[1:] - 1] = False
+    assert np.all(dv[inside] >= 0) and np.all(np.isfinite(mm.uvs))
+
+
+def test_min_radius_skips_thin_chains():
+    s = random_parent_tree(300)
+    chains = s.chains()
+    thick = [c for i, c in enumerate(chains) if s.radius[c if i == 0 else c[1:]].max() >= 0.01]
+    m = branch_mesh(s, radial_segments=4, min_radius=0.01)
+    lens = np.array([len(c) for c in thick])
+    assert 0 < len(thick) < len(chains)
+    assert m.n_triangles == tube_triangle_count(lens, 4)
+    assert branch_mesh(s, min_radius=10.0).n_triangles == 0
+
+
+def test_zero_radius_and_zero_length_segments():
+    pos = np.array([[0, 0, 0], [0, 1, 0], [0, 1, 0], [0, 2, 0], [1, 2, 0]], float)
+    s = TreeSkeleton(pos, np.array([-1, 0, 1, 2, 1]), np.array([0.1, 0.05, 0.05, 0.0, 0.0]))
+    m = branch_mesh(s)
+    assert np.all(np.isfinite(m.normals)) and np.allclose(np.linalg.norm(m.normals, axis=1), 1, atol=1e-5)
+    assert np.all(np.isfinite(m.uvs))
+
+
+def test_deterministic_and_bad_input():
+    s = random_parent_tree(200)
+    a, b = branch_mesh(s), branch_mesh(s)
+    for k in ("positions", "normals", "uvs", "indices"):
+        assert np.array_equal(getattr(a, k), getattr(b, k))
+    with pytest.raises(InputError, match="radial_segments"):
+        branch_mesh(s, radial_segments=2)
+    with pytest.raises(InputError, match="min_radius"):
+        branch_mesh(s, min_radius=-1)
+    with pytest.raises(InputError, match="skeleton"):
+        branch_mesh(np.zeros((3, 3)))
+    with pytest.raises(InputError, match="bark_texture"):
+        branch_mesh(s, bark_texture=np.zeros((4, 4, 3), np.uint8))
+
+
+def test_bark_texture():
+    t = bark_texture(128, seed=3)
+    assert t.shape == (128, 128, 4) and t.dtype == np.uint8
+    assert np.all(t[..., 3] == 255)
+    assert np.array_equal(t, bark_texture(128, seed=3))
+    assert not np.array_equal(t, bark_texture(128, seed=4))
+    rgb = t[..., :3].astype(float)
+    assert rgb[..., 0].mean() > rgb[..., 2].mean()  # brown-grey: red over blue
+    # tileable: the jump across the wrap-around is like the jump between neighbours
+    inner_x = np.abs(np.diff(rgb, axis=1)).mean()
+    wrap_x = np.abs(rgb[:, 0] - rgb[:, -1]).mean()
+    inner_y = np.abs(np.diff(rgb, axis=0)).mean()
+    wrap_y = np.abs(rgb[0] - rgb[-1]).mean()
+    assert wrap_x < 2 * inner_x and wrap_y < 2 * inner_y
+    # fissures run along the grain (rows): vertical neighbours are more alike
+    assert inner_y < inner_x
+    with pytest.raises(InputError, match="size"):
+        bark_texture(4)

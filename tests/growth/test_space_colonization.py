@@ -1,0 +1,102 @@
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError
+from treeform.growth import blue_noise_points, branch_orders, pipe_model_radii, space_colonization
+from treeform.crown.sampling import sample_crown_columns
+from treeform.growth.leaves import attach_leaves, color_leaves
+from treeform.structures import TreeSkeleton
+
+
+def _ball(center, r):
+    return lambda p: np.linalg.norm(p - center, axis=1) < r
+
+
+def test_blue_noise_count_inside_and_spread():
+    pts = blue_noise_points(_ball([0, 5, 0], 2), ([-2, 3, -2], [2, 7, 2]), 2000, seed=1)
+    assert pts.shape == (2000, 3)
+    assert np.all(np.linalg.norm(pts - [0, 5, 0], axis=1) < 2)
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(pts).query(pts, k=2)
+    white = np.random.default_rng(1).uniform(-2, 2, (20000, 3))
+    white = white[np.linalg.norm(white, axis=1) < 2][:2000]
+    dw, _ = cKDTree(white).query(white, k=2)
+    # jittered sampling avoids the near-coincident pairs white noise has
+    assert np.percentile(d[:, 1], 5) > 1.5 * np.percentile(dw[:, 1], 5)
+    assert np.array_equal(pts, blue_noise_points(_ball([0, 5, 0], 2), ([-2, 3, -2], [2, 7, 2]), 2000, seed=1))
+
+
+def test_space_colonization_reaches_the_crown():
+    att = blue_noise_points(_ball([0, 6, 0], 2.5), ([-2.5, 3.5, -2.5], [2.5, 8.5, 2.5]), 3000, seed=0)
+    trunk = np.stack([np.zeros(6), np.linspace(0, 3.5, 6), np.zeros(6)], 1)
+    res = space_colonization(att, trunk, influence_radius=1.5, kill_distance=0.25, segment_length=0.1)
+    n = len(res.positions)
+    assert n > 200
+    assert np.all(res.parent[1:] < np.arange(1, n))
+    assert res.attractors_left < 0.05 * len(att)
+    seg = np.linalg.norm(res.positions[6:] - res.positions[res.parent[6:]], axis=1)
+    np.testing.assert_allclose(seg, 0.1, rtol=1e-9)
+    # grown nodes stay near the attractor cloud
+    assert np.linalg.norm(res.positions[6:] - [0, 6, 0], axis=1).max() < 2.5 + 0.3
+    res2 = space_colonization(att, trunk, influence_radius=1.5, kill_distance=0.25, segment_length=0.1)
+    assert np.array_equal(res.positions, res2.positions)
+
+
+def test_space_colonization_bad_arguments():
+    with pytest.raises(InputError):
+        space_colonization(np.zeros((3, 3)), np.zeros((1, 3)), influence_radius=-1, kill_distance=1, segment_length=1)
+    with pytest.raises(InputError):
+        space_colonization(np.zeros((3, 3)), np.zeros((0, 3)), influence_radius=1, kill_distance=1, segment_length=1)
+
+
+def test_pipe_model_and_orders():
+    parent = np.array([-1, 0, 1, 1, 3, 3])
+    r = pipe_model_radii(parent, tip_radius=0.01, exponent=2.0)
+    for p in range(len(parent)):
+        kids = np.flatnonzero(parent == p)
+        if len(kids):
+            assert np.isclose(r[p] ** 2, (r[kids] ** 2).sum())
+    assert np.isclose(r[0], 0.01 * np.sqrt(3))
+    o = branch_orders(parent, r)
+    assert o[0] == 0 and o.max() >= 1 and o[3] == 0
+
+
+def test_leaves_hang_on_nearest_twigs_and_are_deterministic():
+    att = blue_noise_points(_ball([0, 6, 0], 2.5), ([-2.5, 3.5, -2.5], [2.5, 8.5, 2.5]), 2000, seed=0)
+    trunk = np.stack([np.zeros(6), np.linspace(0, 3.5, 6), np.zeros(6)], 1)
+    res = space_colonization(att, trunk, influence_radius=1.5, kill_distance=0.25, segment_length=0.1)
+    r = pipe_model_radii(res.parent)
+    sk = TreeSkeleton(res.positions, res.parent, r, branch_orders(res.parent, r))
+    pts = blue_noise_points(_ball([0, 6, 0], 2.4), ([-2.5, 3.5, -2.5], [2.5, 8.5, 2.5]), 500, seed=2)
+    f = attach_leaves(sk, pts, size=0.2, center=[0, 6, 0], seed=3)
+    assert len(f) == 500 and np.array_equal(f.positions, pts)
+    assert np.all(sk.order[f.node] > 0)  # on twigs, not on the trunk
+    d = np.linalg.norm(f.positions - sk.positions[f.node], axis=1)
+    assert np.percentile(d, 95) < 0.5  # the colonized twigs reach every part of the crown
+    assert np.allclose(np.linalg.norm(f.normals, axis=1), 1) and np.allclose((f.normals * f.up).sum(1), 0, atol=1e-9)
+    g = attach_leaves(sk, pts, size=0.2, center=[0, 6, 0], seed=3)
+    assert np.array_equal(f.normals, g.normals)
+
+
+def test_column_sampling_covers_the_mask_evenly():
+    mask = np.zeros((60, 80), bool)
+    mask[10:50, 10:70] = True
+    z = np.where(mask, 5.0, 0.0)
+    p = sample_crown_columns(mask, z, 2400, seed=0)
+    assert mask[p[:, 1].astype(int), p[:, 0].astype(int)].all()
+    counts = np.histogram2d(p[:, 1], p[:, 0], bins=(4, 6), range=((10, 50), (10, 70)))[0]
+    assert counts.min() >= 0.8 * counts.mean()  # stratified: every block gets its share
+    assert np.abs(p[:, 2]).max() <= 5.0 and (p[:, 2] > 0).mean() > 0.4
+
+
+def test_color_leaves_ignores_sky_in_window():
+    img = np.zeros((5, 5, 3), np.uint8)
+    img[:, :2] = (0, 0, 255)  # sky
+    img[:, 2:] = (0, 200, 0)  # foliage
+    fm = np.zeros((5, 5), bool)
+    fm[:, 2:] = True
+    f = attach_leaves(TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0.]]), np.array([-1, 0])),
+                      np.zeros((1, 3)), size=0.1, center=[0, 1, 0])
+    c = color_leaves(f, np.array([[2.5, 2.5]]), np.array([True]), img, fm)
+    assert c.color[0, 2] == 0 and c.color[0, 1] > 0.7
