@@ -45,15 +45,17 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
 
     The crown is the foliage closed over small gaps, holes filled, keeping its largest
     component (the whole tree mask when there is almost no foliage, e.g. a bare tree).
-    The trunk base is the centre of the lowest tree rows; the trunk top is the trunk's
-    column at the crown's lowest row.
+    The trunk base is the centre of the lowest tree rows; the trunk is then traced up
+    through the wood pixels, row by row, while one run of wood at least half the trunk's
+    width continues it; the trunk top is where it forks, thins or ends, and never lower
+    than the crown's lowest row.
 
     Examples
     --------
     >>> lab = np.zeros((40, 30), np.uint8); lab[5:25, 5:25] = 1; lab[25:38, 13:17] = 2
     >>> lay = tree_layout(Segmentation(lab))
     >>> lay.base, lay.trunk_width
-    ((14.5, 37.5), 4.0)
+    ((15.0, 37.5), 4.0)
     """
     tree = seg.tree_mask
     if tree.sum() < 16:
@@ -89,4 +91,42 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
         top_col = float(near.mean()) + 0.5 if len(near) else top_col
     else:
         top_col = base_col
-    return TreeLayout(crown, (base_col, bottom + 0.5), (top_col, crown_bottom + 0.5), top, trunk_width)
+    trunk_top = (top_col, crown_bottom + 0.5)
+    traced = _trace_trunk(seg.wood_mask, base_col, bottom, trunk_width)
+    if traced is not None and traced[1] < trunk_top[1]:
+        trunk_top = traced
+    return TreeLayout(crown, (base_col, bottom + 0.5), trunk_top, top, trunk_width)
+
+
+def _trace_trunk(wood: np.ndarray, base_col: float, bottom: int, width: float):
+    """Follow the trunk's wood up from the base; return (column, row) where it forks or ends."""
+    if wood.sum() < 4 * max(width, 1):
+        return None
+    x = base_col
+    last = None
+    gap = 0
+    min_run = max(2.0, 0.5 * width)
+    for row in range(bottom, -1, -1):
+        line = wood[row]
+        if not line.any():
+            gap += 1
+            if gap > max(3, width):
+                break
+            continue
+        # runs of wood on this row
+        d = np.diff(np.concatenate([[0], line.astype(np.int8), [0]]))
+        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        centers = (starts + ends) / 2
+        lengths = ends - starts
+        near = np.abs(centers - x) <= max(width, 3)
+        wide = near & (lengths >= min_run)
+        if wide.sum() != 1:  # the trunk forks (two wide runs) or thins out
+            if wide.sum() > 1 or gap > max(3, width):
+                break
+            gap += 1
+            continue
+        gap = 0
+        i = int(np.flatnonzero(wide)[0])
+        x = 0.7 * x + 0.3 * centers[i]
+        last = (float(x), row + 0.5)
+    return last

@@ -194,6 +194,17 @@ def _sky_mask(F: dict) -> np.ndarray:
         big[0] = False
         if big.any():
             sky |= _components_touching(colour & (tex < 0.15), big[lab])
+    if sky.mean() < 0.02:
+        # no sky model could be learnt (the crown fills the top): bright grey haze seen
+        # beside and through the tree, reaching a side or the top of the photo
+        haze = (L > 195) & (ch < 12) & (tex < 0.2)
+        haze = _open(haze, np.ones((3, 3), np.uint8))
+        side = np.zeros_like(haze)
+        side[:, 0] = side[:, -1] = side[0, :] = True
+        n, lab, st, _ = cv2.connectedComponentsWithStats(haze.astype(np.uint8), connectivity=8)
+        big = st[:, cv2.CC_STAT_AREA] >= 0.003 * h * w
+        big[0] = False
+        sky |= big[lab] & _components_touching(haze, side)
     return sky
 
 
@@ -230,8 +241,8 @@ def _bark_colour(F: dict) -> np.ndarray:
 def _vertical_bark(bark: np.ndarray) -> np.ndarray:
     """Bark pixels in tall, narrow vertical runs (trunks)."""
     h, w = bark.shape
-    kv = cv2.getStructuringElement(cv2.MORPH_RECT, (1, max(3, int(0.12 * h))))
-    kh = cv2.getStructuringElement(cv2.MORPH_RECT, (max(3, int(0.25 * w)), 1))
+    kv = cv2.getStructuringElement(cv2.MORPH_RECT, (1, max(3, int(0.08 * h))))
+    kh = cv2.getStructuringElement(cv2.MORPH_RECT, (max(3, int(0.4 * w)), 1))
     return _open(bark, kv) & ~_open(bark, kh)
 
 
@@ -355,41 +366,68 @@ def _colour_neighbours(F: dict, cand: np.ndarray, crown: np.ndarray, ax: int) ->
     lr = np.log(_hist_prob(q, far, 144)[q] / _hist_prob(q, crown, 144)[q])
     unlike = cand & lit & (lr > np.log(4.0)) & (np.abs(cols - ax) > 0.05 * w)
     unlike = _open(cv2.medianBlur(unlike.astype(np.uint8), 5).astype(bool), np.ones((3, 3), np.uint8))
+    # shadows inside a neighbour belong to it
+    unlike = cv2.morphologyEx(unlike.astype(np.uint8), cv2.MORPH_CLOSE, _disc(3)).astype(bool) & cand
+    unlike &= lit | _erode(unlike, _disc(1))
+    unlike = _open(unlike, _disc(2))  # no thin lines (a shadow crack inside the crown)
     n, lab, st, _ = cv2.connectedComponentsWithStats(unlike.astype(np.uint8), connectivity=8)
     big = st[:, cv2.CC_STAT_AREA] >= 0.01 * h * w
     big[0] = False
     return big[lab]
 
 
-def _find_trunk(F: dict, cand: np.ndarray, g: np.ndarray, ax: int):
-    """The main trunk(s): vertical runs of wood-coloured pixels that stand on the ground.
+def _find_trunk(F: dict, cand: np.ndarray, g: np.ndarray, ax: int, *, near: np.ndarray | None = None,
+                max_offset: float = 0.3):
+    """The main trunk(s): vertical runs of bark-coloured pixels that stand on the ground.
 
-    Wood colour is judged against the tree's own foliage (:func:`_wood_in_tree`), so the
-    grey-green needles of a conifer do not pass. Among the runs whose bottom reaches the
-    ground line, the tallest close to the axis wins; other standing runs within 15 % of
-    the width from it (multi-stemmed trees) are kept too.
+    Candidate runs come from :func:`_vertical_bark` (broken runs are first joined
+    vertically). A run counts when its bottom reaches the ground line, it lies within
+    30 % of the width from the axis and it is, on average, redder and less green than
+    the tree's median colour (:func:`_wood_score` > 0.5), so the grey-green needles of
+    a conifer that reach the ground do not pass. The tallest run close to the axis wins;
+    other standing runs within 15 % of the width (multi-stemmed trees) are kept.
 
     Returns the (h, w) bool trunk pixels and the trunk column.
     """
     h, w = cand.shape
-    vb = _vertical_bark(_wood_in_tree(F, cand, threshold=1.0)) & cand
+    # the ground line may cut a thin trunk a little above its true foot
+    rows = np.arange(h)[:, None]
+    cand = cand | ((rows >= g[None, :]) & (rows < g[None, :] + int(0.06 * h)))
+    woodness = _wood_score(F, cand)
+    # bark colours, or (a trunk in shade) much darker-redder and less green than the tree
+    bark = (_bark_colour(F) | (woodness > 4.0)) & cand
+    vb = _vertical_bark(bark) & cand
+    vb = cv2.morphologyEx(vb.astype(np.uint8), cv2.MORPH_CLOSE,
+                          cv2.getStructuringElement(cv2.MORPH_RECT, (3, max(3, int(0.06 * h))))).astype(bool)
     n, lab, st, cen = cv2.connectedComponentsWithStats(vb.astype(np.uint8), connectivity=8)
+    touches = np.ones(n, bool)
+    if near is not None:
+        touches = np.bincount(lab[_dilate(near, np.ones((3, 3), np.uint8))], minlength=n) > 0
+    area = np.maximum(st[:, cv2.CC_STAT_AREA], 1)
+    mean_wood = np.bincount(lab.ravel(), weights=woodness.ravel(), minlength=n) / area
+    texb = cv2.blur(F["tex"], (5, 5))
+    mean_tex = np.bincount(lab.ravel(), weights=texb.ravel(), minlength=n) / area
+    tex_ref = float(np.median(texb[cand]))
+    hazy = np.bincount(lab.ravel(), weights=((F["L"] > 190) & (F["chroma"] < 10)).ravel().astype(np.float64),
+                       minlength=n) / area
     standing, score = [], []
     for k in range(1, n):
         y0, hh = st[k, cv2.CC_STAT_TOP], st[k, cv2.CC_STAT_HEIGHT]
         xc = int(np.clip(cen[k][0], 0, w - 1))
-        if y0 + hh < min(g[xc], h) - 0.05 * h or abs(xc - ax) > 0.3 * w:
+        ww = st[k, cv2.CC_STAT_WIDTH]
+        if y0 + hh < min(g[xc], h) - 0.1 * h or abs(xc - ax) > max_offset * w or mean_wood[k] < 0.5 or not touches[k]:
             continue
+        if hh < 1.5 * ww or mean_tex[k] < 0.3 * tex_ref or hazy[k] > 0.5:
+            continue  # a trunk is upright; its bark is not smooth, nor white-grey like haze
         standing.append((k, xc))
         score.append(hh * (1.0 - abs(xc - ax) / w))
     if not standing:
         return np.zeros((h, w), bool), ax
-    best = int(np.argmax(score))
-    tx = standing[best][1]
+    tx = standing[int(np.argmax(score))][1]
     keep = np.zeros(n, bool)
     for k, xc in standing:
         keep[k] = abs(xc - tx) <= 0.15 * w
-    return keep[lab], tx
+    return keep[lab] & vb, tx
 
 
 def _grabcut_image(F: dict) -> np.ndarray:
@@ -401,7 +439,11 @@ def _grabcut_image(F: dict) -> np.ndarray:
 
 
 def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
-    """Tree mask and trunk pixels on the reduced photo (both (h, w) bool)."""
+    """Graph cut on the reduced photo.
+
+    Returns the (h, w) bool tree mask, trunk and sky, the (h, w) bool candidate
+    region (neither sky nor ground), the (w,) ground line and the axis column.
+    """
     F = _features(small)
     hs, ws = F["L"].shape
     rows = np.arange(hs)[:, None]
@@ -475,7 +517,9 @@ def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
     if debug is not None:
         debug.update(F=F, small=small, sky=sky, ground=ground, g=g, axis=ax, trunk_x=tx,
                      side=(side_pr & cand) | below_sky, nbr=nbr, low=low, core=core, trunk=trunk, gc_init=gc_init, gc=gc)
-    return mask, trunk, sky
+    if debug is not None:
+        debug.update(trunk_found=bool(trunk.any()))
+    return mask, trunk, sky, cand, g, (tx if trunk.any() else ax)
 
 
 # --------------------------------------------------------------------------- full resolution
@@ -512,18 +556,25 @@ def _wood_in_tree(F: dict, mask: np.ndarray, *, threshold: float = 2.0) -> np.nd
     the plain bark rule.
     """
     bark = _bark_colour(F) & mask
-    if not mask.any() or bark[mask].mean() > 0.5:
+    if not mask.any():
         return bark
+    if np.median(F["a"][mask]) > -2.0 and np.median(F["exg"][mask]) < 0.03:
+        return bark  # the tree's typical colour is bark: a leafless tree
+    return bark & (_wood_score(F, mask) > threshold)
+
+
+def _wood_score(F: dict, mask: np.ndarray) -> np.ndarray:
+    """(H, W) float32: how much redder (a*) and less green (excess green) than the
+    median of ``mask`` a pixel is, in units of 4 a* and 0.06 excess green."""
     a_f = float(np.median(F["a"][mask]))
     g_f = float(np.median(F["exg"][mask]))
-    score = (F["a"] - a_f) / 4.0 + (g_f - F["exg"]) / 0.06
-    return bark & (score > threshold)
+    return ((F["a"] - a_f) / 4.0 + (g_f - F["exg"]) / 0.06).astype(np.float32)
 
 
-def _label(img: np.ndarray, mask: np.ndarray, trunk: np.ndarray | None = None) -> np.ndarray:
+def _label(img: np.ndarray, mask: np.ndarray, trunk: np.ndarray | None = None, *, F: dict | None = None) -> np.ndarray:
     """(H, W) uint8 labels: 0 outside ``mask``, 2 on wood-coloured or trunk pixels, else 1."""
     h, w = mask.shape
-    F = _features(img, texture=False)
+    F = _features(img, texture=False) if F is None else F
     wood = _wood_in_tree(F, mask)
     k = max(1, int(round(min(h, w) / 300)))
     wood = cv2.medianBlur(wood.astype(np.uint8), 2 * k + 1).astype(bool) & mask
@@ -546,7 +597,7 @@ def _trunk_full(img: np.ndarray, mask: np.ndarray, trunk_s: np.ndarray) -> np.nd
         return np.zeros((h, w), bool)
     t = cv2.resize(trunk_s.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
     k = max(3, int(round(2 * max(h, w) / WORK_SIDE)) | 1)
-    return _dilate(t, np.ones((k, k), np.uint8)) & mask
+    return _dilate(t, np.ones((k, k), np.uint8)) & mask & _bark_colour(_features(img, texture=False))
 
 
 # --------------------------------------------------------------------------- public API
@@ -591,14 +642,38 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     sc = min(1.0, WORK_SIDE / max(h, w))
     size = (max(8, round(w * sc)), max(8, round(h * sc)))
     small = cv2.resize(img, size, interpolation=cv2.INTER_AREA) if sc < 1.0 else img.copy()
-    ms, trunk_s, sky_s = _coarse_mask(small, seed)
+    ms, trunk_s, sky_s, cand_s, g_s, ax_s = _coarse_mask(small, seed)
     mask, post = _refine_full(img, small, ms, sky_s)
-    mask = _largest_cc(mask)
+    # the trunk again at full resolution, where a thin trunk is more than a pixel wide
+    hs, ws = ms.shape
+    F = _features(img)
+    up = lambda m: cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
+    g = np.minimum(np.round(cv2.resize(g_s.astype(np.float32).reshape(1, -1), (w, 1),
+                                       interpolation=cv2.INTER_LINEAR).ravel() * h / hs), h).astype(np.int32)
+    trunk, _ = _find_trunk(F, up(cand_s), g, int(round((ax_s + 0.5) * w / ws)), near=mask, max_offset=0.1)
+    trunk |= _trunk_full(img, mask, trunk_s)
+    mask |= trunk
+    # nothing of the tree below the ground line but the foot of the trunk
+    rows = np.arange(h)[:, None]
+    mask &= (rows <= g[None, :] + int(0.01 * h)) | trunk
+    if trunk.any():
+        # nothing below the foot of the trunk; just above it, only the trunk's foot
+        ys = np.nonzero(trunk.any(1))[0]
+        foot = int(ys.max())
+        mask &= rows <= foot
+        xs = np.nonzero(trunk[max(0, foot - int(0.02 * h)):].any(0))[0]
+        m = int(0.015 * w)
+        cols = np.arange(w)[None, :]
+        base = (rows >= foot - min(int(0.25 * (foot - ys.min())), int(0.05 * h)))
+        base = base & (cols >= xs.min() - m) & (cols <= xs.max() + m)
+        near_trunk = _dilate(trunk, np.ones((1, 2 * m + 1), np.uint8))
+        mask &= ~base | near_trunk
+        trunk |= base & mask  # the foot of the tree is wood
+    mask = _largest_cc(mask, prefer=trunk)
     mask = _fill_holes(mask, 0.0005 * h * w)
     if mask.sum() < _MIN_TREE_FRACTION * h * w:
         raise NoTreeFoundError("no tree found in the photo (the tree region covers under 1 % of it)")
-    trunk = _trunk_full(img, mask, trunk_s)
-    labels = _label(img, mask, trunk)
+    labels = _label(img, mask, trunk & mask, F=F)
     alpha = np.where(mask, np.maximum(post, 0.5), np.minimum(post, 0.5))
     alpha = cv2.GaussianBlur(alpha.astype(np.float32), (3, 3), 0)
     alpha = np.clip(alpha, 0.0, 1.0)

@@ -25,7 +25,7 @@ class Segmentation:
     Examples
     --------
     >>> lab = np.zeros((3, 3), np.uint8); lab[1, 1] = 1
-    >>> Segmentation(lab).tree_mask.sum()
+    >>> int(Segmentation(lab).tree_mask.sum())
     1
     """
 

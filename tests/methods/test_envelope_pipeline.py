@@ -1,0 +1,107 @@
+"""End-to-end tests of the single-photo envelope method on the bundled sample."""
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform import reconstruct
+from treeform.io import read_glb_counts
+from treeform.methods import METHODS
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+FAST = dict(max_size=320, attractors=3000, leaves=2500, rdm_resolution=128)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("recon") / "tree"
+    return reconstruct(SAMPLE, out=out, seed=0, **FAST), out
+
+
+def test_registry_lists_the_method():
+    assert "envelope" in METHODS and "001" not in METHODS["envelope"][0]
+
+
+def test_outputs_exist_and_agree(run):
+    res, out = run
+    names = {p.name for p in out.iterdir()}
+    for n in ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png", "metrics.json",
+              "config.json"):
+        assert n in names, n
+    assert not any(n.startswith(".treeform-") for n in names)
+    assert read_glb_counts(out / "tree.glb") == (res.mesh.n_vertices, res.mesh.n_triangles)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics["timings"]) >= {"segment", "envelope", "rdm", "colonize", "render", "export"}
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["config"]["seed"] == 0 and cfg["config"]["max_size"] == 320
+
+
+def test_reconstruction_matches_the_photo(run):
+    res, _ = run
+    m = res.metrics
+    assert m["reprojection_error"] < 0.15, m
+    assert m["iou"] > 0.85
+    assert 0.6 < m["depth_width_ratio"] < 1.4
+    # Y up, trunk base at the origin, tree about the requested height
+    lo, hi = res.mesh.bounds()
+    assert abs(lo[1]) < 0.3 and 8.5 < hi[1] < 11.5
+    sk = res.skeleton
+    assert np.allclose(sk.positions[0], 0) and sk.order[0] == 0
+    assert sk.radius[0] == sk.radius.max()
+    # leaves take the photo's colours: mean leaf colour close to the mean foliage colour
+    photo_mean = res.photo.image[res.segmentation.foliage_mask].mean(0) / 255
+    assert np.abs(res.foliage.color.mean(0) - photo_mean).max() < 0.08
+    # every leaf and attractor-grown node lies inside the crown's RDM (with a card's tolerance)
+    inside = res.rdm.contains(res.foliage.positions)
+    assert inside.mean() > 0.97
+
+
+def test_glb_loads_in_trimesh_with_same_counts(run):
+    trimesh = pytest.importorskip("trimesh")
+    res, out = run
+    scene = trimesh.load(out / "tree.glb", process=False)
+    geoms = list(scene.geometry.values()) if hasattr(scene, "geometry") else [scene]
+    assert sum(len(g.vertices) for g in geoms) == res.mesh.n_vertices
+    assert sum(len(g.faces) for g in geoms) == res.mesh.n_triangles
+
+
+def test_glb_passes_khronos_validator(run):
+    _, out = run
+    script = ROOT / "tools" / "gltf_validate.mjs"
+    if not shutil.which("node") or not (ROOT / "tools" / "node_modules" / "gltf-validator").exists():
+        pytest.skip("node or the npm gltf-validator is not installed (make validator)")
+    proc = subprocess.run(["node", str(script), str(out / "tree.glb")], capture_output=True, text=True, timeout=120)
+    report = json.loads(proc.stdout)
+    assert proc.returncode == 0 and report["numErrors"] == 0, proc.stdout
+
+
+def test_same_seed_same_skeleton_bytes_and_other_seed_differs(tmp_path, run):
+    _, out = run
+    again = tmp_path / "again"
+    reconstruct(SAMPLE, out=again, seed=0, **FAST)
+    assert (again / "skeleton.json").read_bytes() == (out / "skeleton.json").read_bytes()
+    other = tmp_path / "other"
+    reconstruct(SAMPLE, out=other, seed=1, **FAST)
+    assert (other / "skeleton.json").read_bytes() != (out / "skeleton.json").read_bytes()
+
+
+def test_user_mask_overrides_segmentation(tmp_path, run):
+    from PIL import Image
+
+    res, _ = run
+    mask = res.segmentation.tree_mask
+    Image.fromarray((mask * 255).astype(np.uint8)).save(tmp_path / "mask.png")
+    res2 = reconstruct(SAMPLE, mask=tmp_path / "mask.png", **FAST)
+    assert np.array_equal(res2.segmentation.tree_mask, mask)
+    assert res2.metrics["reprojection_error"] < 0.15
+
+
+def test_conical_crown_and_lod(tmp_path):
+    low = reconstruct(SAMPLE, crown="conical", lod="low", **FAST)
+    assert low.mesh.n_triangles <= 20_000
+    assert low.metrics["reprojection_error"] < 0.2
