@@ -101,7 +101,7 @@ def test_obj_errors_and_atomicity(tmp_path, tree_mesh, monkeypatch):
     def boom(*a, **k):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(obj_mod.np, "savetxt", boom)
+    monkeypatch.setattr(obj_mod, "_write_rows", boom)
     with pytest.raises(RuntimeError):
         write_obj(tree_mesh, tmp_path / "tree.obj")
     assert list(tmp_path.iterdir()) == []  # neither the PNGs nor the MTL nor temp files remain

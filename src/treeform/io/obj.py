@@ -33,6 +33,14 @@ def _fmt_float(x: float) -> str:
     return f"{float(x):.6g}"
 
 
+def _write_rows(f, arr: np.ndarray, fmt: str, chunk: int = 20000) -> None:
+    """Write one formatted line per row; one C-level ``%`` per chunk (much faster than np.savetxt)."""
+    arr = np.asarray(arr)
+    for i in range(0, len(arr), chunk):
+        block = arr[i:i + chunk]
+        f.write(((fmt + "\n") * len(block)) % tuple(block.ravel().tolist()))
+
+
 def write_obj(mesh: Mesh, path) -> Path:
     """Write ``mesh`` as ``<stem>.obj`` + ``<stem>.mtl`` (+ ``<stem>_<material>.png``), atomically.
 
@@ -116,14 +124,14 @@ def write_obj(mesh: Mesh, path) -> Path:
                 f.write(f"o {group}\ng {group}\n")
                 if np.any(p.colors[:, :3] != 1.0):
                     v = np.hstack([p.positions, np.clip(p.colors[:, :3], 0, 1)])
-                    np.savetxt(f, v, fmt="v %.6g %.6g %.6g %.4g %.4g %.4g")
+                    _write_rows(f, v, "v %.6g %.6g %.6g %.4g %.4g %.4g")
                 else:
-                    np.savetxt(f, p.positions, fmt="v %.6g %.6g %.6g")
+                    _write_rows(f, p.positions, "v %.6g %.6g %.6g")
                 vt = np.column_stack([p.uvs[:, 0], 1.0 - p.uvs[:, 1]])
-                np.savetxt(f, vt, fmt="vt %.6g %.6g")
-                np.savetxt(f, p.normals, fmt="vn %.6g %.6g %.6g")
+                _write_rows(f, vt, "vt %.6g %.6g")
+                _write_rows(f, p.normals, "vn %.6g %.6g %.6g")
                 f.write(f"usemtl {mat_names[id(p.material)]}\ns off\n")
                 idx = p.indices.astype(np.int64) + offset
-                np.savetxt(f, np.repeat(idx, 3, axis=1), fmt="f %d/%d/%d %d/%d/%d %d/%d/%d")
+                _write_rows(f, np.repeat(idx, 3, axis=1), "f %d/%d/%d %d/%d/%d %d/%d/%d")
                 offset += p.n_vertices
     return path

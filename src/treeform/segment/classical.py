@@ -141,6 +141,15 @@ def _fill_holes(mask: np.ndarray, max_area: float) -> np.ndarray:
     return mask | small[lab]
 
 
+def _median(values: np.ndarray, mask: np.ndarray) -> float:
+    """Median of ``values[mask]`` (on a regular subsample when there are many pixels)."""
+    step = max(1, int(np.sqrt(mask.size / 40000)))
+    v = values[::step, ::step][mask[::step, ::step]]
+    if v.size == 0:
+        v = values[mask]
+    return float(np.median(v)) if v.size else 0.0
+
+
 def _border(shape) -> np.ndarray:
     b = np.zeros(shape, bool)
     b[0, :] = b[-1, :] = b[:, 0] = b[:, -1] = True
@@ -194,17 +203,6 @@ def _sky_mask(F: dict) -> np.ndarray:
         big[0] = False
         if big.any():
             sky |= _components_touching(colour & (tex < 0.15), big[lab])
-    if sky.mean() < 0.02:
-        # no sky model could be learnt (the crown fills the top): bright grey haze seen
-        # beside and through the tree, reaching a side or the top of the photo
-        haze = (L > 195) & (ch < 12) & (tex < 0.2)
-        haze = _open(haze, np.ones((3, 3), np.uint8))
-        side = np.zeros_like(haze)
-        side[:, 0] = side[:, -1] = side[0, :] = True
-        n, lab, st, _ = cv2.connectedComponentsWithStats(haze.astype(np.uint8), connectivity=8)
-        big = st[:, cv2.CC_STAT_AREA] >= 0.003 * h * w
-        big[0] = False
-        sky |= big[lab] & _components_touching(haze, side)
     return sky
 
 
@@ -235,7 +233,7 @@ def wood_colour_mask(image: np.ndarray) -> np.ndarray:
 
 def _bark_colour(F: dict) -> np.ndarray:
     a, b, L, exg = F["a"], F["b"], F["L"], F["exg"]
-    return (a > -7) & (b > -4) & (b < 45) & (exg < 0.16) & (L > 25)
+    return (a > -7) & (b > -4) & (b < 45) & (exg < 0.16) & (L > 25) & ~((L > 215) & (F["chroma"] < 10))
 
 
 def _vertical_bark(bark: np.ndarray) -> np.ndarray:
@@ -407,7 +405,7 @@ def _find_trunk(F: dict, cand: np.ndarray, g: np.ndarray, ax: int, *, near: np.n
     mean_wood = np.bincount(lab.ravel(), weights=woodness.ravel(), minlength=n) / area
     texb = cv2.blur(F["tex"], (5, 5))
     mean_tex = np.bincount(lab.ravel(), weights=texb.ravel(), minlength=n) / area
-    tex_ref = float(np.median(texb[cand]))
+    tex_ref = _median(texb, cand)
     hazy = np.bincount(lab.ravel(), weights=((F["L"] > 190) & (F["chroma"] < 10)).ravel().astype(np.float64),
                        minlength=n) / area
     standing, score = [], []
@@ -441,8 +439,9 @@ def _grabcut_image(F: dict) -> np.ndarray:
 def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
     """Graph cut on the reduced photo.
 
-    Returns the (h, w) bool tree mask, trunk and sky, the (h, w) bool candidate
-    region (neither sky nor ground), the (w,) ground line and the axis column.
+    Returns a dict: ``mask``, ``trunk``, ``sky`` and ``cand`` (neither sky nor
+    ground), all (h, w) bool; ``g`` the (w,) ground line; ``axis`` the trunk's (or
+    else the main axis') column; ``F`` the cues of the reduced photo.
     """
     F = _features(small)
     hs, ws = F["L"].shape
@@ -467,7 +466,7 @@ def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
     core = _erode(core, np.ones((3, 3), np.uint8))
     trunk, tx = _find_trunk(F, cand, g, ax)
     texb = cv2.blur(F["tex"], (5, 5))
-    ref = float(np.median(texb[cand]))
+    ref = _median(texb, cand)
     sure0 = cand & (rows < g[None, :] - 4) & (texb > 0.6 * ref)
     crown_top = cand & (np.abs(cols - ax) < 0.15 * ws) & (rows < ytop + 0.3 * max(gmed - ytop, 1.0))
     nbr = _colour_neighbours(F, cand, crown_top, ax)
@@ -519,21 +518,25 @@ def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
                      side=(side_pr & cand) | below_sky, nbr=nbr, low=low, core=core, trunk=trunk, gc_init=gc_init, gc=gc)
     if debug is not None:
         debug.update(trunk_found=bool(trunk.any()))
-    return mask, trunk, sky, cand, g, (tx if trunk.any() else ax)
+    return dict(mask=mask, trunk=trunk, sky=sky, cand=cand, g=g, axis=tx if trunk.any() else ax, F=F)
 
 
 # --------------------------------------------------------------------------- full resolution
 
 
-def _refine_full(img: np.ndarray, small: np.ndarray, ms: np.ndarray, sky_s: np.ndarray):
+def _refine_full(F: dict, Fs: dict, ms: np.ndarray, sky_s: np.ndarray):
     """Upsample the reduced mask and snap its edge to the photo's colours.
 
-    Returns the full-resolution (H, W) bool mask and the (H, W) float32 colour
-    posterior used for alpha.
+    ``F`` and ``Fs`` are the cues of the photo and of its reduced copy. Colour
+    histograms of the tree and of the background on the reduced copy give a
+    likelihood ratio per colour; the upsampled, slightly blurred mask is the prior;
+    a pixel is tree where the posterior exceeds one half (twigs and sky gaps at the
+    silhouette follow the photo).
+
+    Returns the full-resolution (H, W) bool mask and the (H, W) float32 posterior.
     """
-    h, w = img.shape[:2]
+    h, w = F["L"].shape
     hs, ws = ms.shape
-    Fs = _features(small, texture=False)
     qs = _quantize(Fs)
     pf = _hist_prob(qs, _erode(ms, np.ones((3, 3), np.uint8)) & ~sky_s)
     pb = _hist_prob(qs, ~_dilate(ms, np.ones((3, 3), np.uint8)))
@@ -542,8 +545,7 @@ def _refine_full(img: np.ndarray, small: np.ndarray, ms: np.ndarray, sky_s: np.n
     sig = 0.6 * max(h / hs, w / ws)
     prior = cv2.GaussianBlur(prior, (0, 0), sigmaX=sig)
     prior = np.clip(prior, 0.0, 0.97)
-    Ff = _features(img, texture=False)
-    r = ratio[_quantize(Ff)]
+    r = ratio[_quantize(F)]
     post = prior * r / (prior * r + (1.0 - prior) + 1e-6)
     mask = post > 0.5
     return mask, post.astype(np.float32)
@@ -558,7 +560,7 @@ def _wood_in_tree(F: dict, mask: np.ndarray, *, threshold: float = 2.0) -> np.nd
     bark = _bark_colour(F) & mask
     if not mask.any():
         return bark
-    if np.median(F["a"][mask]) > -2.0 and np.median(F["exg"][mask]) < 0.03:
+    if _median(F["a"], mask) > -2.0 and _median(F["exg"], mask) < 0.03:
         return bark  # the tree's typical colour is bark: a leafless tree
     return bark & (_wood_score(F, mask) > threshold)
 
@@ -566,8 +568,8 @@ def _wood_in_tree(F: dict, mask: np.ndarray, *, threshold: float = 2.0) -> np.nd
 def _wood_score(F: dict, mask: np.ndarray) -> np.ndarray:
     """(H, W) float32: how much redder (a*) and less green (excess green) than the
     median of ``mask`` a pixel is, in units of 4 a* and 0.06 excess green."""
-    a_f = float(np.median(F["a"][mask]))
-    g_f = float(np.median(F["exg"][mask]))
+    a_f = _median(F["a"], mask)
+    g_f = _median(F["exg"], mask)
     return ((F["a"] - a_f) / 4.0 + (g_f - F["exg"]) / 0.06).astype(np.float32)
 
 
@@ -590,14 +592,14 @@ def _label(img: np.ndarray, mask: np.ndarray, trunk: np.ndarray | None = None, *
     return labels
 
 
-def _trunk_full(img: np.ndarray, mask: np.ndarray, trunk_s: np.ndarray) -> np.ndarray:
+def _trunk_full(F: dict, mask: np.ndarray, trunk_s: np.ndarray) -> np.ndarray:
     """The trunk at full resolution: upsampled trunk pixels, grown into bark-coloured mask pixels."""
     h, w = mask.shape
     if not trunk_s.any():
         return np.zeros((h, w), bool)
     t = cv2.resize(trunk_s.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
     k = max(3, int(round(2 * max(h, w) / WORK_SIDE)) | 1)
-    return _dilate(t, np.ones((k, k), np.uint8)) & mask & _bark_colour(_features(img, texture=False))
+    return _dilate(t, np.ones((k, k), np.uint8)) & mask & _bark_colour(F)
 
 
 # --------------------------------------------------------------------------- public API
@@ -636,22 +638,23 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     colour-posterior edge refinement; see the module docstring.
     """
     img = _check_image(image)
-    if float(img.reshape(-1, 3).std(0).max()) < 2.0:
-        raise NoTreeFoundError("no tree found in the photo (the image is uniform)")
     h, w = img.shape[:2]
     sc = min(1.0, WORK_SIDE / max(h, w))
     size = (max(8, round(w * sc)), max(8, round(h * sc)))
     small = cv2.resize(img, size, interpolation=cv2.INTER_AREA) if sc < 1.0 else img.copy()
-    ms, trunk_s, sky_s, cand_s, g_s, ax_s = _coarse_mask(small, seed)
-    mask, post = _refine_full(img, small, ms, sky_s)
+    if int(small.max(axis=(0, 1)).astype(int).__sub__(small.min(axis=(0, 1))).max()) < 6:
+        raise NoTreeFoundError("no tree found in the photo (the image is uniform)")
+    co = _coarse_mask(small, seed)
+    ms, trunk_s, cand_s, g_s, ax_s = co["mask"], co["trunk"], co["cand"], co["g"], co["axis"]
+    F = _features(img)
+    mask, post = _refine_full(F, co["F"], ms, co["sky"])
     # the trunk again at full resolution, where a thin trunk is more than a pixel wide
     hs, ws = ms.shape
-    F = _features(img)
     up = lambda m: cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
     g = np.minimum(np.round(cv2.resize(g_s.astype(np.float32).reshape(1, -1), (w, 1),
                                        interpolation=cv2.INTER_LINEAR).ravel() * h / hs), h).astype(np.int32)
     trunk, _ = _find_trunk(F, up(cand_s), g, int(round((ax_s + 0.5) * w / ws)), near=mask, max_offset=0.1)
-    trunk |= _trunk_full(img, mask, trunk_s)
+    trunk |= _trunk_full(F, mask, trunk_s)
     mask |= trunk
     # nothing of the tree below the ground line but the foot of the trunk
     rows = np.arange(h)[:, None]
