@@ -65,7 +65,12 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     size = bottom - top + 1
     foliage = seg.foliage_mask
     r = max(1, size // 100)
-    crown = ndi.binary_closing(foliage, np.ones((2 * r + 1, 2 * r + 1), bool)) if foliage.sum() > 0.2 * tree.sum() else tree
+    if foliage.sum() > 0.2 * tree.sum():
+        # pad so the closing does not eat crowns cut by the image frame
+        crown = ndi.binary_closing(np.pad(foliage, r + 1, mode="edge"), np.ones((2 * r + 1, 2 * r + 1), bool))
+        crown = crown[r + 1:-(r + 1), r + 1:-(r + 1)]
+    else:
+        crown = tree
     crown = ndi.binary_fill_holes(crown)
     lab, n = ndi.label(crown)
     if n == 0:

@@ -17,13 +17,20 @@ from treeform.structures.rdm import RadialDistanceMap
 def rdm_from_texels(center, radii: np.ndarray) -> RadialDistanceMap:
     """Build a RadialDistanceMap, filling texels no fragment reached (radius 0).
 
-    Holes (e.g. directions grazing a thin part) take the median of the valid texels
-    of their face within a 5×5 window, or the global minimum radius if none.
+    Holes (e.g. directions grazing a thin part) take the value of the nearest valid
+    texel of the same face (exact Euclidean distance transform), or the smallest valid
+    radius when a face has no valid texel at all.
 
     Parameters
     ----------
     center : array_like, shape (3,)
     radii : ndarray, shape (6, R, R)
+
+    Examples
+    --------
+    >>> r = np.ones((6, 4, 4), np.float32); r[0, 1, 1] = 0
+    >>> float(rdm_from_texels(np.zeros(3), r).radii[0, 1, 1])
+    1.0
     """
     radii = np.asarray(radii, np.float32).copy()
     valid = radii > 0
@@ -33,7 +40,11 @@ def rdm_from_texels(center, radii: np.ndarray) -> RadialDistanceMap:
         fill = float(radii[valid].min())
         for f in range(6):
             hole = ~valid[f]
-            if hole.any():
-                med = ndi.generic_filter(np.where(valid[f], radii[f], np.nan), np.nanmedian, size=5, mode="nearest")
-                radii[f][hole] = np.where(np.isfinite(med[hole]), med[hole], fill)
+            if not hole.any():
+                continue
+            if hole.all():
+                radii[f] = fill
+                continue
+            _, (iy, ix) = ndi.distance_transform_edt(hole, return_indices=True)
+            radii[f][hole] = radii[f][iy[hole], ix[hole]]
     return RadialDistanceMap(np.asarray(center, np.float64), radii)

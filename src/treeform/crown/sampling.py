@@ -71,3 +71,88 @@ def _morton(ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         return (v | (v << np.uint64(1))) & np.uint64(0x55555555)
 
     return spread(ys) << np.uint64(1) | spread(xs)
+
+
+def ray_extents(contains, origins: np.ndarray, directions: np.ndarray, t_near: float, t_far: float, *,
+                steps: int = 96) -> tuple[np.ndarray, np.ndarray]:
+    """First and last parameter t at which each ray is inside a volume.
+
+    Samples ``steps`` points on every ray ``o + t d`` for t in [t_near, t_far] and
+    returns the smallest and largest t found inside (NaN for rays that miss).
+
+    Parameters
+    ----------
+    contains : callable
+        ``contains(points (N, 3)) -> (N,) bool``, e.g. ``RadialDistanceMap.contains``.
+    origins, directions : ndarray, shape (N, 3)
+    t_near, t_far : float
+
+    Returns
+    -------
+    t_first, t_last : ndarray, shape (N,)
+
+    Examples
+    --------
+    >>> ball = lambda p: np.linalg.norm(p, axis=1) < 1
+    >>> a, b = ray_extents(ball, np.array([[0, 0, 5.0]]), np.array([[0, 0, -1.0]]), 0, 10, steps=201)
+    >>> round(float(a[0]), 1), round(float(b[0]), 1)
+    (4.0, 6.0)
+    """
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(directions, np.float64).reshape(-1, 3)
+    ts = np.linspace(t_near, t_far, steps)
+    first = np.full(len(o), np.nan)
+    last = np.full(len(o), np.nan)
+    for t in ts:
+        inside = np.asarray(contains(o + t * d), bool)
+        new = inside & np.isnan(first)
+        first[new] = t
+        last[inside] = t
+    return first, last
+
+
+def sample_rdm_shell(rdm, n: int, *, shell_power: float = 4.0, keep=None, seed=None, max_rounds: int = 20) -> np.ndarray:
+    """Sample ``n`` points inside a radial distance map, denser toward its surface.
+
+    Directions are uniform on the sphere; the radius is ``t·R(direction)`` with t drawn
+    so the density grows as ``t^shell_power`` (on top of the volume element), which puts
+    foliage in the crown's outer shell seen from every side.
+
+    Parameters
+    ----------
+    rdm : RadialDistanceMap
+    n : int
+    shell_power : float
+    keep : callable, optional
+        ``keep(points) -> bool`` extra test (e.g. the photo's visual hull); rejected
+        points are redrawn.
+
+    Returns
+    -------
+    ndarray, shape (m, 3), m <= n (fewer only if ``keep`` rejects nearly everything)
+
+    Examples
+    --------
+    >>> from treeform.structures import RadialDistanceMap
+    >>> rdm = RadialDistanceMap(np.zeros(3), np.full((6, 4, 4), 2.0, np.float32))
+    >>> p = sample_rdm_shell(rdm, 500, seed=0)
+    >>> p.shape, bool(np.linalg.norm(p, axis=1).max() <= 2.0), bool(np.median(np.linalg.norm(p, axis=1)) > 1.6)
+    ((500, 3), True, True)
+    """
+    rng = as_rng(seed)
+    out = []
+    have = 0
+    for _ in range(max_rounds):
+        if have >= n:
+            break
+        m = 2 * (n - have) + 16
+        d = rng.normal(size=(m, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        t = rng.random(m) ** (1.0 / (3.0 + shell_power))
+        p = rdm.center + d * (t * rdm.lookup(d))[:, None]
+        if keep is not None:
+            p = p[np.asarray(keep(p), bool)]
+        out.append(p)
+        have += len(p)
+    pts = np.concatenate(out) if out else np.zeros((0, 3))
+    return pts[:n]

@@ -1,31 +1,38 @@
 """Classical (non-learned) segmentation of one ordinary outdoor photo of a tree.
 
-The automatic path, :func:`segment_tree`, needs no user input. It works in four steps,
-all on a copy of the photo reduced to :data:`WORK_SIDE` pixels on its long side:
+The automatic path, :func:`segment_tree`, needs no user input. Steps 1-3 run on a copy
+of the photo reduced to :data:`WORK_SIDE` pixels on its long side, step 4 at full size.
 
-1. **Colour and texture cues** per pixel: CIE Lab, chromatic excess green
-   ``(2g - r - b) / (r + g + b)`` and the local standard deviation of log brightness
-   (foliage is textured; sky, lawn and distant tree lines are smooth).
-2. **Sky, ground and bark models.** Sky is blue (negative b*) or matches the colour
-   of smooth bright seeds at the top of the photo, and is connected to them. Ground is
-   everything below a *ground line*, one row per column found by dynamic programming:
-   ground is smooth, coloured like the bottom band of the photo and horizontally
-   extended; vertical bark-coloured runs (trunks) are not ground. Bark is the wood
-   colour model of :func:`wood_colour_mask` (brown / grey, not green, not sky).
-3. **Graph cut.** The main tree is placed on the column where the non-sky skyline
-   rises highest near the centre of the photo. Side tree lines (the skyline drops to a
-   flat level toward a border) and the band just above the ground line away from the
-   trunk (bushes, hedges, lawn) start as probable background; the trunk and the
-   crown interior start as sure foreground; sky and deep ground as sure background.
-   ``cv2.grabCut`` then settles the uncertain pixels with colour models learned from
-   those seeds. The main tree is the connected component holding the seeds.
-4. **Full resolution.** The mask is upsampled and its edge refined with the colour
-   models (a per-pixel Bayes rule whose prior is the upsampled mask), so twigs and sky
-   gaps at the silhouette follow the photo. Wood is labelled with the wood colour
-   model inside the tree, and the trunk found in step 2 is always wood.
+1. **Cues** per pixel: CIE Lab, chromatic excess green ``(2g - r - b) / (r + g + b)``
+   and texture, the local standard deviation of log brightness (foliage is textured;
+   sky, lawn and distant tree lines are smoother).
+2. **Sky, ground and bark.** Sky is smooth and blue (negative b*), or coloured like
+   smooth bright seeds at the top of the photo (white or grey sky) and connected to
+   them. Ground is everything below a *ground line*, one row per column, found exactly
+   by dynamic programming: ground is smooth, coloured like the bottom band of the
+   photo, low in the frame, and never a vertical run of bark colour (a trunk). Bark is
+   brown, grey or reddish, neither green, yellow nor blue (:func:`wood_colour_mask`).
+3. **Graph cut** (``cv2.grabCut`` on a texture / a* / b* image, sky painted one flat
+   colour). The main tree stands on the column where the skyline of what is neither
+   sky nor ground rises highest near the centre; its trunk is the tallest vertical
+   run of bark colour standing on the ground line near that column. Sure foreground:
+   the textured crown interior and the trunk. Sure background: sky, ground, regions
+   of another colour than the top of the crown away from it (a neighbouring tree),
+   pixels under a gap of side sky and the band just above the ground line reaching a
+   side of the photo (bushes, hedges, tree lines). Probable background: the rest of
+   that band and tree lines beside the crown (the skyline drops to a flat level
+   toward a border). The cut settles the probable pixels; the main tree is the
+   connected component holding the trunk and crown seeds.
+4. **Full resolution.** The mask is upsampled and its edge snapped to the photo by a
+   per-pixel Bayes rule (colour histograms of tree and background as likelihoods,
+   the blurred upsampled mask as prior), so twigs and sky gaps follow the photo. The
+   trunk is searched again at full size (a thin trunk is a pixel wide when reduced);
+   nothing of the tree lies below the ground line or below the trunk's foot, and the
+   foot is wood. Wood is the bark colour, judged against the tree's own median
+   colour so that grey-green needles and leaf shadows stay foliage.
 
 :func:`mask_to_segmentation` labels a user-supplied tree mask with the same wood
-colour model.
+colour model and trunk search.
 """
 
 from __future__ import annotations
@@ -49,14 +56,14 @@ _NBINS = 8 * 16 * 16
 # --------------------------------------------------------------------------- checks
 
 
-def _check_image(image) -> np.ndarray:
+def _check_image(image, *, min_side: int = 8) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(f"image: expected an (H, W, 3) RGB array, got shape {img.shape}")
     if img.dtype != np.uint8:
         raise InputError(f"image: expected dtype uint8, got {img.dtype}")
-    if min(img.shape[:2]) < 8:
-        raise InputError(f"image: expected at least 8 x 8 pixels, got {img.shape[1]} x {img.shape[0]}")
+    if min(img.shape[:2]) < min_side:
+        raise InputError(f"image: expected at least {min_side} x {min_side} pixels, got {img.shape[1]} x {img.shape[0]}")
     return np.ascontiguousarray(img)
 
 
@@ -92,14 +99,6 @@ def _quantize(F: dict) -> np.ndarray:
     aq = np.clip((F["a"] + 48.0) * (16 / 96.0), 0, 15).astype(np.int32)
     bq = np.clip((F["b"] + 48.0) * (16 / 96.0), 0, 15).astype(np.int32)
     return (Lq * 16 + aq) * 16 + bq
-
-
-def _quantize_coarse(F: dict) -> np.ndarray:
-    """(H, W) int32 colour bin in a coarse 4 (L) x 8 (a) x 8 (b) Lab grid."""
-    Lq = np.clip(F["L"] * (4 / 256.0), 0, 3).astype(np.int32)
-    aq = np.clip((F["a"] + 48.0) * (8 / 96.0), 0, 7).astype(np.int32)
-    bq = np.clip((F["b"] + 48.0) * (8 / 96.0), 0, 7).astype(np.int32)
-    return (Lq * 8 + aq) * 8 + bq
 
 
 def _hist_prob(q: np.ndarray, sel: np.ndarray, nbins: int = _NBINS) -> np.ndarray:
@@ -227,8 +226,7 @@ def wood_colour_mask(image: np.ndarray) -> np.ndarray:
     >>> wood_colour_mask(px).tolist()
     [[True, False]]
     """
-    img = _check_image(image) if min(np.shape(image)[:2]) >= 8 else np.asarray(image, np.uint8)
-    return _bark_colour(_features(img, texture=False))
+    return _bark_colour(_features(_check_image(image, min_side=1), texture=False))
 
 
 def _bark_colour(F: dict) -> np.ndarray:
@@ -496,7 +494,7 @@ def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
     gc[sure | core | trunk] = cv2.GC_FGD
     gc[sky] = cv2.GC_BGD
     gc[rows >= g[None, :] + 3] = cv2.GC_BGD
-    gc_init = gc.copy()
+    gc_init = gc.copy() if debug is not None else None
     cv2.setRNGSeed(seed)
     bgd = np.zeros((1, 65), np.float64)
     fgd = np.zeros((1, 65), np.float64)
@@ -513,11 +511,9 @@ def _coarse_mask(small: np.ndarray, seed: int, debug: dict | None = None):
     mask = _largest_cc(fg, prefer=core | trunk)
     mask = _fill_holes(mask, 0.002 * hs * ws)
     trunk &= mask
-    if debug is not None:
+    if debug is not None:  # intermediate maps, for inspecting failures
         debug.update(F=F, small=small, sky=sky, ground=ground, g=g, axis=ax, trunk_x=tx,
                      side=(side_pr & cand) | below_sky, nbr=nbr, low=low, core=core, trunk=trunk, gc_init=gc_init, gc=gc)
-    if debug is not None:
-        debug.update(trunk_found=bool(trunk.any()))
     return dict(mask=mask, trunk=trunk, sky=sky, cand=cand, g=g, axis=tx if trunk.any() else ax, F=F)
 
 
@@ -593,7 +589,8 @@ def _label(img: np.ndarray, mask: np.ndarray, trunk: np.ndarray | None = None, *
 
 
 def _trunk_full(F: dict, mask: np.ndarray, trunk_s: np.ndarray) -> np.ndarray:
-    """The trunk at full resolution: upsampled trunk pixels, grown into bark-coloured mask pixels."""
+    """The trunk found on the reduced photo, at full resolution: its upsampled pixels,
+    widened by about two reduced pixels, where the mask is bark-coloured."""
     h, w = mask.shape
     if not trunk_s.any():
         return np.zeros((h, w), bool)
@@ -642,7 +639,7 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     sc = min(1.0, WORK_SIDE / max(h, w))
     size = (max(8, round(w * sc)), max(8, round(h * sc)))
     small = cv2.resize(img, size, interpolation=cv2.INTER_AREA) if sc < 1.0 else img.copy()
-    if int(small.max(axis=(0, 1)).astype(int).__sub__(small.min(axis=(0, 1))).max()) < 6:
+    if int(np.ptp(small.reshape(-1, 3), axis=0).max()) < 6:
         raise NoTreeFoundError("no tree found in the photo (the image is uniform)")
     co = _coarse_mask(small, seed)
     ms, trunk_s, cand_s, g_s, ax_s = co["mask"], co["trunk"], co["cand"], co["g"], co["axis"]
@@ -650,7 +647,9 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     mask, post = _refine_full(F, co["F"], ms, co["sky"])
     # the trunk again at full resolution, where a thin trunk is more than a pixel wide
     hs, ws = ms.shape
-    up = lambda m: cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
+    def up(m):
+        return cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool)
+
     g = np.minimum(np.round(cv2.resize(g_s.astype(np.float32).reshape(1, -1), (w, 1),
                                        interpolation=cv2.INTER_LINEAR).ravel() * h / hs), h).astype(np.int32)
     trunk, _ = _find_trunk(F, up(cand_s), g, int(round((ax_s + 0.5) * w / ws)), near=mask, max_offset=0.1)
@@ -659,9 +658,10 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     # nothing of the tree below the ground line but the foot of the trunk
     rows = np.arange(h)[:, None]
     mask &= (rows <= g[None, :] + int(0.01 * h)) | trunk
-    if trunk.any():
-        # nothing below the foot of the trunk; just above it, only the trunk's foot
-        ys = np.nonzero(trunk.any(1))[0]
+    ys = np.nonzero(trunk.any(1))[0]
+    if ys.size and ys.max() >= np.nonzero(mask.any(1))[0].max() - 0.1 * h:
+        # the trunk stands at the bottom of the tree: nothing lies below its foot, and
+        # just above the foot, only the trunk
         foot = int(ys.max())
         mask &= rows <= foot
         xs = np.nonzero(trunk[max(0, foot - int(0.02 * h)):].any(0))[0]
@@ -679,8 +679,8 @@ def segment_tree(image: np.ndarray, *, seed: int = 0) -> Segmentation:
     labels = _label(img, mask, trunk & mask, F=F)
     alpha = np.where(mask, np.maximum(post, 0.5), np.minimum(post, 0.5))
     alpha = cv2.GaussianBlur(alpha.astype(np.float32), (3, 3), 0)
-    alpha = np.clip(alpha, 0.0, 1.0)
-    alpha[labels == BACKGROUND] = np.minimum(alpha[labels == BACKGROUND], 0.49)
+    tree = labels != BACKGROUND
+    alpha = np.where(tree, np.clip(alpha, 0.5, 1.0), np.clip(alpha, 0.0, 0.49)).astype(np.float32)
     return Segmentation(labels, alpha)
 
 
@@ -720,5 +720,19 @@ def mask_to_segmentation(mask: np.ndarray, image: np.ndarray) -> Segmentation:
     m = m > (127 if m.dtype == np.uint8 and m.max() > 1 else 0)
     if not m.any():
         raise NoTreeFoundError("no tree found in the mask (it is empty)")
-    labels = _label(img, m)
+    F = _features(img)
+    labels = _label(img, m, _trunk_in_mask(F, m), F=F)
     return Segmentation(labels, m.astype(np.float32))
+
+
+def _trunk_in_mask(F: dict, mask: np.ndarray) -> np.ndarray:
+    """Trunk of a given tree mask: :func:`_find_trunk` with the ground taken as the
+    mask's lowest row in each column and the axis at the mask's foot."""
+    h, w = mask.shape
+    ys, xs = np.nonzero(mask)
+    foot = ys >= ys.max() - max(2, int(0.05 * (ys.max() - ys.min() + 1)))
+    ax = int(np.median(xs[foot]))
+    has = mask.any(0)
+    g = np.where(has, h - np.argmax(mask[::-1], axis=0), h).astype(np.int32)
+    trunk, _ = _find_trunk(F, mask, g, ax)
+    return trunk & mask

@@ -53,6 +53,9 @@ class EnvelopeConfig:
     """Pipe-model exponent e: r_parent^e = sum r_child^e."""
     leaves: int = 8000
     """Number of leaf clusters (alpha-textured cards)."""
+    shell_leaves: float = 0.35
+    """Share of the leaves sampled on the RDM's 3D shell (covers side and top views); the rest
+    are spread evenly over the photo's crown pixels (covers the front view)."""
     leaf_coverage: float = 3.0
     """Mean number of leaf cards over a crown pixel seen from the front; sets the card size."""
     lod: str = "medium"
@@ -71,6 +74,8 @@ class EnvelopeConfig:
                      "leaf_coverage"):
             check_positive(getattr(self, name), name)
         check_positive(self.relief_weight, "relief_weight", allow_zero=True)
+        if not 0 <= self.shell_leaves <= 1:
+            raise InputError(f"shell_leaves: expected a fraction in [0, 1], got {self.shell_leaves}")
         for name, lo, hi in (("max_size", 32, 8192), ("envelope_grid", 16, 1024), ("relief_levels", 1, 8),
                              ("rdm_resolution", 8, 2048), ("attractors", 10, 2_000_000), ("leaves", 0, 2_000_000),
                              ("radial_segments", 3, 64), ("render_size", 32, 4096)):

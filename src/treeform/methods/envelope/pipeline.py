@@ -130,6 +130,32 @@ def _in_hull(cam: Camera, mask: np.ndarray, points: np.ndarray) -> np.ndarray:
     return out
 
 
+def _rdm_front_depth(rdm: RadialDistanceMap, cam: Camera, mpp: float, mask: np.ndarray, fallback: np.ndarray,
+                     step: int = 4) -> np.ndarray:
+    """Height (pixels, toward the camera) of the RDM's front surface over each mask pixel.
+
+    Rays through every ``step``-th pixel are marched through the RDM; the front extent
+    (symmetric about z = 0 in the envelope, so one side suffices) is interpolated to all
+    pixels. Pixels whose ray misses the RDM keep the envelope's height ``fallback``.
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.crown.sampling import ray_extents
+
+    h, w = mask.shape
+    gy, gx = np.mgrid[step // 2:h:step, step // 2:w:step]
+    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
+    reach = float(rdm.radii.max()) * 1.05 + 1e-6
+    near = cam.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, dist - reach))
+    far = cam.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, dist + reach))
+    first, _ = ray_extents(rdm.contains, near, far - near, 0.0, 1.0, steps=64)
+    z = np.where(np.isnan(first), 0.0, reach * (1 - 2 * np.nan_to_num(first, nan=0.5)) / mpp)
+    z = np.maximum(z, 0).reshape(gx.shape)
+    full = ndi.zoom(z, (h / z.shape[0], w / z.shape[1]), order=1)[:h, :w]
+    full = np.pad(full, ((0, h - full.shape[0]), (0, w - full.shape[1])), mode="edge")
+    return np.where(full > 0, full, fallback)
+
+
 def _views(cam: Camera, tree_height: float, size: int) -> dict:
     """Side and top cameras at the front camera's distance, centred on the tree axis."""
     dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
@@ -243,30 +269,32 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                 sc.iteration.astype(np.float64),
                                 meta={"method": "envelope", "seed": cfg.seed, "source": Path(ph.source).name})
     with timer.stage("leaves"):
-        from treeform.crown.sampling import sample_crown_columns
+        from treeform.crown.sampling import sample_crown_columns, sample_rdm_shell
         from treeform.growth.leaves import attach_leaves, color_leaves
 
         leaf_mask = seg.tree_mask & layout.crown_mask
+        dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
         area = leaf_mask.sum() * mpp * mpp
-        size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves, 1) / 0.33) if cfg.leaves else 0.1
+        n_shell = int(round(cfg.shell_leaves * cfg.leaves))
+        # card size so the column-sampled leaves alone cover each crown pixel leaf_coverage times
+        # on average (a card's texture covers ~0.65 of it, at a mean tilt of ~0.5 toward the camera)
+        size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves - n_shell, 1) / 0.33) if cfg.leaves else 0.1
         # card centres stay a third of a card inside the silhouette so cards do not overhang it
         inset = int(round(size / mpp / 3))
-        core = ndi.binary_erosion(leaf_mask, iterations=inset) if inset > 0 else leaf_mask
-        uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, env.front_z,
-                                   cfg.leaves, seed=rng)
-        pts = _pixels_to_world(cam, mpp, uvz)
-        # respect the relief-perturbed crown (the RDM): pull points that fall outside toward z = 0
-        for _ in range(3):
-            out_rdm = ~rdm.contains(pts)
-            if not out_rdm.any():
-                break
-            uvz[out_rdm, 2] *= 0.5
-            pts[out_rdm] = _pixels_to_world(cam, mpp, uvz[out_rdm])
+        core = ndi.binary_erosion(leaf_mask, iterations=inset, border_value=1) if inset > 0 else leaf_mask
+        # the crown's depth at each pixel comes from the RDM (relief, rotated copies): march rays
+        crown_z = _rdm_front_depth(rdm, cam, mpp, leaf_mask, env.front_z)
+        uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, crown_z,
+                                   cfg.leaves - n_shell, seed=rng)
+        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: _in_hull(cam, core, p), seed=rng)
+        pts = np.concatenate([_pixels_to_world(cam, mpp, uvz), shell_pts])
+        suv = cam.project(shell_pts)
+        uvz = np.concatenate([uvz, np.column_stack([suv[:, :2], (dist - suv[:, 2]) / mpp])])
         foliage = attach_leaves(skeleton, pts, size=size, center=center, seed=rng)
         if len(foliage):
             fu = np.clip(uvz[:, 0].astype(np.int64), 0, width - 1)
             fv = np.clip(uvz[:, 1].astype(np.int64), 0, height - 1)
-            zf = env.front_z[fv, fu]
+            zf = crown_z[fv, fu]
             visible = uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)
             d = foliage.positions - center
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
