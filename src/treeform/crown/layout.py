@@ -27,6 +27,8 @@ class TreeLayout:
         Highest tree row.
     trunk_width : float
         Median trunk width in pixels.
+    trunk_path : ndarray, shape (K, 2)
+        The trunk's centre line (column, row) from the base up to ``trunk_top``.
     """
 
     crown_mask: np.ndarray
@@ -34,6 +36,11 @@ class TreeLayout:
     trunk_top: tuple
     top_row: int
     trunk_width: float
+    trunk_path: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.trunk_path is None:
+            self.trunk_path = np.array([self.base, self.trunk_top], np.float64)
 
     @property
     def height_px(self) -> float:
@@ -82,11 +89,19 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     base_col = float(np.nonzero(band)[1].mean()) + 0.5
     crown_rows = np.nonzero(crown.any(axis=1))[0]
     crown_bottom = int(crown_rows.max())
-    # trunk: the tree pixels below the crown bottom, in the column band of the base
-    widths = tree[crown_bottom + 1: bottom + 1].sum(axis=1) if crown_bottom < bottom else np.array([len(cols)])
+    # trunk: the wood region touching the base, else the tree pixels below the crown
+    trunk_wood = _base_wood(seg.wood_mask, base_col, bottom, size)
+    if trunk_wood is not None:
+        rows_w = np.nonzero(trunk_wood.any(axis=1))[0]
+        lo_r, hi_r = rows_w.min(), rows_w.max()
+        span = hi_r - lo_r + 1
+        band_rows = trunk_wood[hi_r - int(0.5 * span): hi_r - int(0.1 * span) + 1]  # above the root flare
+        widths = band_rows.sum(axis=1)
+    else:
+        widths = tree[crown_bottom + 1: bottom + 1].sum(axis=1) if crown_bottom < bottom else np.array([len(cols)])
     widths = widths[widths > 0]
     trunk_width = float(np.median(widths)) if len(widths) else float(len(cols))
-    # trunk top: where the trunk meets the crown (the wood / tree centre a little below the crown bottom)
+    # trunk top: where the trunk meets the crown (the tree centre a little below the crown bottom)
     probe = min(bottom, crown_bottom + max(1, size // 50))
     row = tree[probe]
     if row.any():
@@ -97,19 +112,40 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     else:
         top_col = base_col
     trunk_top = (top_col, crown_bottom + 0.5)
-    traced = _trace_trunk(seg.wood_mask, base_col, bottom, trunk_width)
-    if traced is not None and traced[1] < trunk_top[1]:
-        trunk_top = traced
-    return TreeLayout(crown, (base_col, bottom + 0.5), trunk_top, top, trunk_width)
+    path = None
+    if trunk_wood is not None:
+        traced = _trace_trunk(trunk_wood, base_col, bottom, trunk_width)
+        if traced is not None and traced[-1][1] < trunk_top[1]:
+            trunk_top = tuple(traced[-1])
+            path = np.concatenate([[[base_col, bottom + 0.5]], traced])
+    return TreeLayout(crown, (base_col, bottom + 0.5), trunk_top, top, trunk_width, path)
+
+
+def _base_wood(wood: np.ndarray, base_col: float, bottom: int, size: int):
+    """The wood components that touch the trunk base (None if there is none)."""
+    if not wood.any():
+        return None
+    lab, n = ndi.label(wood, np.ones((3, 3), bool))
+    r = max(3, size // 40)
+    b = int(base_col)
+    ids = np.unique(lab[max(0, bottom - r): bottom + 1, max(0, b - 3 * r): b + 3 * r + 1])
+    ids = ids[ids > 0]
+    if len(ids) == 0:
+        return None
+    comp = np.isin(lab, ids)
+    return comp if comp.sum() >= 4 * r else None
 
 
 def _trace_trunk(wood: np.ndarray, base_col: float, bottom: int, width: float):
-    """Follow the trunk's wood up from the base; return (column, row) where it forks or ends."""
+    """Follow the trunk's wood up from the base; return its centre line (K, 2) up to where it forks,
+    thins, widens into the crown or ends (None if it cannot be followed)."""
     if wood.sum() < 4 * max(width, 1):
         return None
     x = base_col
     last = None
+    path = []
     gap = 0
+    running = float(width)
     min_run = max(2.0, 0.5 * width)
     for row in range(bottom, -1, -1):
         line = wood[row]
@@ -121,10 +157,18 @@ def _trace_trunk(wood: np.ndarray, base_col: float, bottom: int, width: float):
         # runs of wood on this row
         d = np.diff(np.concatenate([[0], line.astype(np.int8), [0]]))
         starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        # bark texture splits a trunk into stripes: runs closer than 40 % of its width are one
+        join = starts[1:] - ends[:-1] < max(3.0, 0.4 * width)
+        starts = np.concatenate([starts[:1], starts[1:][~join]])
+        ends = np.concatenate([ends[:-1][~join], ends[-1:]])
         centers = (starts + ends) / 2
         lengths = ends - starts
         near = np.abs(centers - x) <= max(width, 3)
-        wide = near & (lengths >= min_run)
+        wide = near & (lengths >= min_run) & (lengths <= 3 * max(width, 3))
+        if last is None and wide.sum() != 1:  # still in the root flare: keep climbing
+            if row < bottom - 4 * max(width, 3):
+                break
+            continue
         if wide.sum() != 1:  # the trunk forks (two wide runs) or thins out
             if wide.sum() > 1 or gap > max(3, width):
                 break
@@ -132,6 +176,13 @@ def _trace_trunk(wood: np.ndarray, base_col: float, bottom: int, width: float):
             continue
         gap = 0
         i = int(np.flatnonzero(wide)[0])
+        # a fork whose other limb left the search window shows as a sudden narrowing
+        if last is not None and lengths[i] < 0.55 * running:
+            break
+        running = lengths[i] if last is None else 0.9 * running + 0.1 * lengths[i]
         x = 0.7 * x + 0.3 * centers[i]
         last = (float(x), row + 0.5)
-    return last
+        path.append(last)
+    if last is None:
+        return None
+    return np.array(path[::max(1, int(width) // 2)] + [last], np.float64)

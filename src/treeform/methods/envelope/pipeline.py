@@ -156,6 +156,37 @@ def _rdm_front_depth(rdm: RadialDistanceMap, cam: Camera, mpp: float, mask: np.n
     return np.where(full > 0, full, fallback)
 
 
+def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -> np.ndarray:
+    """World nodes every ``seg_len`` metres along the traced trunk (base at the origin)."""
+    pts = _pixels_to_world(cam, mpp, np.column_stack([path_px, np.zeros(len(path_px))]))
+    pts[0] = 0.0
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] <= 0:
+        return np.stack([np.zeros(3), np.array([0.0, seg_len, 0.0])])
+    t = np.linspace(0, s[-1], max(2, int(s[-1] / seg_len) + 1))
+    return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
+
+
+def _trunk_pixels(seg: Segmentation, layout) -> np.ndarray:
+    """Wood pixels of the trunk: the wood region touching the base, below the trunk top."""
+    import scipy.ndimage as ndi
+
+    wood = seg.wood_mask
+    lab, n = ndi.label(wood, np.ones((3, 3), bool))
+    out = np.zeros_like(wood)
+    if n == 0:
+        return out
+    bu, bv = int(layout.base[0]), min(int(layout.base[1]), wood.shape[0] - 1)
+    r = max(2, int(layout.trunk_width))
+    ids = np.unique(lab[max(0, bv - r):bv + 1, max(0, bu - r):bu + r + 1])
+    ids = ids[ids > 0]
+    if len(ids):
+        out = np.isin(lab, ids)
+        out[: int(layout.trunk_top[1])] = False
+    return out
+
+
 def _views(cam: Camera, tree_height: float, size: int) -> dict:
     """Side and top cameras at the front camera's distance, centred on the tree axis."""
     dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
@@ -252,10 +283,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         from treeform.growth.space_colonization import space_colonization
 
         seg_len = cfg.segment_length * r_mean
-        base = np.zeros(3)
-        top = _pixels_to_world(cam, mpp, np.array([[layout.trunk_top[0], layout.trunk_top[1], 0.0]]))[0]
-        n_trunk = max(2, int(np.linalg.norm(top - base) / seg_len) + 1)
-        trunk = base + np.linspace(0, 1, n_trunk)[:, None] * (top - base)
+        trunk = _trunk_nodes(cam, mpp, layout.trunk_path, seg_len)
+        n_trunk = len(trunk)
         # the bole carries no branches: only its top fifth may sprout (the rest is clear stem)
         growable = np.linspace(0, 1, n_trunk) >= 0.8
         sc = space_colonization(attractors, trunk, influence_radius=cfg.influence * r_mean,
@@ -272,7 +301,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         from treeform.crown.sampling import sample_crown_columns, sample_rdm_shell
         from treeform.growth.leaves import attach_leaves, color_leaves
 
-        leaf_mask = seg.tree_mask & layout.crown_mask
+        leaf_mask = seg.tree_mask & layout.crown_mask & ~_trunk_pixels(seg, layout)
         dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
         area = leaf_mask.sum() * mpp * mpp
         n_shell = int(round(cfg.shell_leaves * cfg.leaves))
