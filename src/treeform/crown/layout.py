@@ -186,3 +186,20 @@ def _trace_trunk(wood: np.ndarray, base_col: float, bottom: int, width: float):
     if last is None:
         return None
     return np.array(path[::max(1, int(width) // 2)] + [last], np.float64)
+
+
+def trunk_pixels(seg: Segmentation, layout: TreeLayout) -> np.ndarray:
+    """(H, W) bool: the trunk's own wood — the wood region touching the base, below the trunk top."""
+    wood = seg.wood_mask
+    lab, n = ndi.label(wood, np.ones((3, 3), bool))
+    out = np.zeros_like(wood)
+    if n == 0:
+        return out
+    bu, bv = int(layout.base[0]), min(int(layout.base[1]), wood.shape[0] - 1)
+    r = max(2, int(layout.trunk_width))
+    ids = np.unique(lab[max(0, bv - r):bv + 1, max(0, bu - r):bu + r + 1])
+    ids = ids[ids > 0]
+    if len(ids):
+        out = np.isin(lab, ids)
+        out[: int(layout.trunk_top[1])] = False
+    return out

@@ -156,3 +156,73 @@ def sample_rdm_shell(rdm, n: int, *, shell_power: float = 4.0, keep=None, seed=N
         have += len(p)
     pts = np.concatenate(out) if out else np.zeros((0, 3))
     return pts[:n]
+
+
+def visual_hull_contains(camera, mask: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Whether points project onto ``True`` pixels of ``mask`` seen by ``camera`` (its visual hull).
+
+    Parameters
+    ----------
+    camera : Camera
+    mask : ndarray, shape (H, W), bool
+        Same size as the camera's image.
+    points : ndarray, shape (N, 3)
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+
+    Examples
+    --------
+    >>> from treeform.structures import Camera
+    >>> cam = Camera(10, 10, 90.0, (0, 0, 5), (0, 0, 0))
+    >>> m = np.zeros((10, 10), bool); m[:, 5:] = True
+    >>> visual_hull_contains(cam, m, np.array([[1.0, 0, 0], [-1.0, 0, 0]])).tolist()
+    [True, False]
+    """
+    uvz = camera.project(points)
+    h, w = mask.shape
+    u = np.floor(uvz[:, 0]).astype(np.int64)
+    v = np.floor(uvz[:, 1]).astype(np.int64)
+    ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
+    out = np.zeros(len(uvz), bool)
+    out[ok] = mask[v[ok], u[ok]]
+    return out
+
+
+def rdm_front_height(rdm, camera, plane_distance: float, metres_per_pixel: float, shape: tuple,
+                     *, step: int = 4, steps: int = 64) -> np.ndarray:
+    """Height of a radial distance map's front surface above the plane z = 0, per image pixel.
+
+    Rays through every ``step``-th pixel are marched through the RDM (``steps`` samples
+    between depths ``plane_distance ± max radius``); the first inside sample gives the
+    front surface, whose height toward the camera is returned in pixel units
+    (``metres / metres_per_pixel``) and interpolated to every pixel. 0 where rays miss.
+
+    Parameters
+    ----------
+    rdm : RadialDistanceMap
+    camera : Camera
+        Looking at the plane z = 0 from ``plane_distance``.
+    plane_distance : float
+    metres_per_pixel : float
+        Scale on the plane z = 0.
+    shape : tuple of int
+        (H, W) of the output.
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+    """
+    import scipy.ndimage as ndi
+
+    h, w = shape
+    gy, gx = np.mgrid[step // 2:h:step, step // 2:w:step]
+    reach = float(rdm.radii.max()) * 1.05 + 1e-6
+    near = camera.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, plane_distance - reach))
+    far = camera.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, plane_distance + reach))
+    first, _ = ray_extents(rdm.contains, near, far - near, 0.0, 1.0, steps=steps)
+    z = np.where(np.isnan(first), 0.0, reach * (1 - 2 * np.nan_to_num(first, nan=0.5)) / metres_per_pixel)
+    z = np.maximum(z, 0).reshape(gx.shape)
+    full = ndi.zoom(z, (h / z.shape[0], w / z.shape[1]), order=1)[:h, :w]
+    return np.pad(full, ((0, h - full.shape[0]), (0, w - full.shape[1])), mode="edge")

@@ -118,44 +118,6 @@ def _pixels_to_world(cam: Camera, m: float, uvz: np.ndarray) -> np.ndarray:
     return cam.unproject(uvz[:, 0], uvz[:, 1], dist - uvz[:, 2] * m)
 
 
-def _in_hull(cam: Camera, mask: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Whether points project onto tree pixels of the photo (its visual hull)."""
-    uvz = cam.project(points)
-    h, w = mask.shape
-    u = np.floor(uvz[:, 0]).astype(np.int64)
-    v = np.floor(uvz[:, 1]).astype(np.int64)
-    ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
-    out = np.zeros(len(points), bool)
-    out[ok] = mask[v[ok], u[ok]]
-    return out
-
-
-def _rdm_front_depth(rdm: RadialDistanceMap, cam: Camera, mpp: float, mask: np.ndarray, fallback: np.ndarray,
-                     step: int = 4) -> np.ndarray:
-    """Height (pixels, toward the camera) of the RDM's front surface over each mask pixel.
-
-    Rays through every ``step``-th pixel are marched through the RDM; the front extent
-    (symmetric about z = 0 in the envelope, so one side suffices) is interpolated to all
-    pixels. Pixels whose ray misses the RDM keep the envelope's height ``fallback``.
-    """
-    import scipy.ndimage as ndi
-
-    from treeform.crown.sampling import ray_extents
-
-    h, w = mask.shape
-    gy, gx = np.mgrid[step // 2:h:step, step // 2:w:step]
-    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
-    reach = float(rdm.radii.max()) * 1.05 + 1e-6
-    near = cam.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, dist - reach))
-    far = cam.unproject(gx.ravel() + 0.5, gy.ravel() + 0.5, np.full(gx.size, dist + reach))
-    first, _ = ray_extents(rdm.contains, near, far - near, 0.0, 1.0, steps=64)
-    z = np.where(np.isnan(first), 0.0, reach * (1 - 2 * np.nan_to_num(first, nan=0.5)) / mpp)
-    z = np.maximum(z, 0).reshape(gx.shape)
-    full = ndi.zoom(z, (h / z.shape[0], w / z.shape[1]), order=1)[:h, :w]
-    full = np.pad(full, ((0, h - full.shape[0]), (0, w - full.shape[1])), mode="edge")
-    return np.where(full > 0, full, fallback)
-
-
 def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -> np.ndarray:
     """World nodes every ``seg_len`` metres along the traced trunk (base at the origin)."""
     pts = _pixels_to_world(cam, mpp, np.column_stack([path_px, np.zeros(len(path_px))]))
@@ -166,25 +128,6 @@ def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -
         return np.stack([np.zeros(3), np.array([0.0, seg_len, 0.0])])
     t = np.linspace(0, s[-1], max(2, int(s[-1] / seg_len) + 1))
     return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
-
-
-def _trunk_pixels(seg: Segmentation, layout) -> np.ndarray:
-    """Wood pixels of the trunk: the wood region touching the base, below the trunk top."""
-    import scipy.ndimage as ndi
-
-    wood = seg.wood_mask
-    lab, n = ndi.label(wood, np.ones((3, 3), bool))
-    out = np.zeros_like(wood)
-    if n == 0:
-        return out
-    bu, bv = int(layout.base[0]), min(int(layout.base[1]), wood.shape[0] - 1)
-    r = max(2, int(layout.trunk_width))
-    ids = np.unique(lab[max(0, bv - r):bv + 1, max(0, bu - r):bu + r + 1])
-    ids = ids[ids > 0]
-    if len(ids):
-        out = np.isin(lab, ids)
-        out[: int(layout.trunk_top[1])] = False
-    return out
 
 
 def _views(cam: Camera, tree_height: float, size: int) -> dict:
@@ -266,11 +209,13 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                       resolution=cfg.rdm_resolution, rotations_deg=tuple(cfg.rdm_rotations))
         rdm = rdm_from_texels(center, radii)
         r_mean = rdm.mean_radius()
+    from treeform.crown.sampling import visual_hull_contains
+
     hull_mask = ndi.binary_dilation(seg.tree_mask, iterations=1)
 
     def inside(p):
         ok = rdm.contains(p)
-        ok[ok] = _in_hull(cam, hull_mask, p[ok])
+        ok[ok] = visual_hull_contains(cam, hull_mask, p[ok])
         return ok
 
     with timer.stage("attractors"):
@@ -298,10 +243,11 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                 sc.iteration.astype(np.float64),
                                 meta={"method": "envelope", "seed": cfg.seed, "source": Path(ph.source).name})
     with timer.stage("leaves"):
-        from treeform.crown.sampling import sample_crown_columns, sample_rdm_shell
+        from treeform.crown.layout import trunk_pixels
+        from treeform.crown.sampling import rdm_front_height, sample_crown_columns, sample_rdm_shell
         from treeform.growth.leaves import attach_leaves, color_leaves
 
-        leaf_mask = seg.tree_mask & layout.crown_mask & ~_trunk_pixels(seg, layout)
+        leaf_mask = seg.tree_mask & layout.crown_mask & ~trunk_pixels(seg, layout)
         dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
         area = leaf_mask.sum() * mpp * mpp
         n_shell = int(round(cfg.shell_leaves * cfg.leaves))
@@ -312,10 +258,11 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         inset = int(round(size / mpp / 3))
         core = ndi.binary_erosion(leaf_mask, iterations=inset, border_value=1) if inset > 0 else leaf_mask
         # the crown's depth at each pixel comes from the RDM (relief, rotated copies): march rays
-        crown_z = _rdm_front_depth(rdm, cam, mpp, leaf_mask, env.front_z)
+        crown_z = rdm_front_height(rdm, cam, dist, mpp, leaf_mask.shape)
+        crown_z = np.where(crown_z > 0, crown_z, env.front_z)
         uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, crown_z,
                                    cfg.leaves - n_shell, seed=rng)
-        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: _in_hull(cam, core, p), seed=rng)
+        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: visual_hull_contains(cam, core, p), seed=rng)
         pts = np.concatenate([_pixels_to_world(cam, mpp, uvz), shell_pts])
         suv = cam.project(shell_pts)
         uvz = np.concatenate([uvz, np.column_stack([suv[:, :2], (dist - suv[:, 2]) / mpp])])
