@@ -40,12 +40,16 @@ def _main(version: bool = typer.Option(False, "--version", callback=_version, is
     """treeform: photographs of real trees -> 3D tree assets."""
 
 
-def _run(func, *args, **kwargs):
-    """Run an API call with a rich progress display; TreeformError -> one line, non-zero exit."""
+def run_api(func, *args, stages=None, **kwargs):
+    """Run an API call with a rich progress display; TreeformError -> one line, non-zero exit.
+
+    ``func`` must accept ``progress=callback(stage, event, seconds)``; ``stages`` names its
+    stages (for the bar's total; default: the single-photo pipeline's).
+    """
     from treeform.cli.progress import StageProgress
 
     try:
-        with StageProgress() as prog:
+        with StageProgress(stages) if stages else StageProgress() as prog:
             return func(*args, progress=prog.callback, **kwargs)
     except TreeformError as exc:
         typer.echo(f"error: {exc}", err=True)
@@ -70,7 +74,7 @@ def reconstruct(
     from treeform.cli.progress import print_summary
     from treeform.methods.envelope.pipeline import reconstruct as api
 
-    res = _run(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, leaves=leaves, lod=lod.value,
+    res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, leaves=leaves, lod=lod.value,
                tree_height=height)
     print_summary(res)
 
@@ -85,8 +89,23 @@ def demo(out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Output 
 
     sample = Path(str(files("treeform") / "data" / "Celtis_occidentalis_1.jpg"))
     out.parent.mkdir(parents=True, exist_ok=True)
-    res = _run(api, sample, out=out)
+    res = run_api(api, sample, out=out)
     print_summary(res)
+
+
+def _register_commands() -> None:
+    """Import every ``treeform/cli/cmd_*.py``; each adds its verbs with ``@app.command()``."""
+    import importlib
+    import pkgutil
+
+    import treeform.cli as pkg
+
+    for m in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
+        if m.name.startswith("cmd_"):
+            importlib.import_module(f"treeform.cli.{m.name}")
+
+
+_register_commands()
 
 
 def main():
