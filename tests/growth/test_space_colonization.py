@@ -100,3 +100,19 @@ def test_color_leaves_ignores_sky_in_window():
                       np.zeros((1, 3)), size=0.1, center=[0, 1, 0])
     c = color_leaves(f, np.array([[2.5, 2.5]]), np.array([True]), img, fm)
     assert c.color[0, 2] == 0 and c.color[0, 1] > 0.7
+
+
+def test_perception_cone_limits_what_a_node_sees():
+    # attractors only below the start node: an upward cone sees none, so nothing grows
+    att = np.random.default_rng(0).uniform(-1, 1, (200, 3)) + [0, -3, 0]
+    res = space_colonization(att, np.zeros((1, 3)), influence_radius=10, kill_distance=0.2, segment_length=0.1,
+                             perception_angle=60)
+    assert len(res.positions) == 1 and res.attractors_left == 200
+    # the isotropic version grows down to them
+    iso = space_colonization(att, np.zeros((1, 3)), influence_radius=10, kill_distance=0.2, segment_length=0.1)
+    assert len(iso.positions) > 20
+    # a wide cone toward a crown above grows, and every new segment stays within the cone of its parent's
+    att2 = blue_noise_points(_ball([0, 4, 0], 1.5), ([-1.5, 2.5, -1.5], [1.5, 5.5, 1.5]), 1500, seed=0)
+    cone = space_colonization(att2, np.zeros((1, 3)), influence_radius=6, kill_distance=0.25, segment_length=0.1,
+                              perception_angle=80)
+    assert len(cone.positions) > 100 and cone.attractors_left < 0.2 * len(att2)

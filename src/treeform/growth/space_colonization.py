@@ -40,7 +40,9 @@ class SpaceColonizationResult:
 
 def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, start_parent: np.ndarray | None = None,
                        *, influence_radius: float, kill_distance: float, segment_length: float,
-                       max_iterations: int = 1000, growable: np.ndarray | None = None) -> SpaceColonizationResult:
+                       max_iterations: int = 1000, growable: np.ndarray | None = None,
+                       perception_angle: float | None = None, initial_direction=(0.0, 1.0, 0.0),
+                       candidates: int = 8) -> SpaceColonizationResult:
     """Grow a branching structure toward attraction points.
 
     Each step, every attractor is associated with its closest tree node within
@@ -66,6 +68,14 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
     max_iterations : int
     growable : ndarray, shape (K,), bool, optional
         Which initial nodes may sprout (default: all).
+    perception_angle : float, optional
+        Half-angle in degrees of the perception cone around each node's growth
+        direction (Palubicki et al. 2009, used by seed 003 §4.3's self-organizing mode):
+        a node only perceives attractors inside its cone. ``None`` (default) is Runions's
+        isotropic sphere. With a cone, each attractor takes the nearest of its
+        ``candidates`` nearest nodes whose cone holds it.
+    initial_direction : sequence of 3 floats
+        Growth direction of the root (others grow along parent -> node).
 
     Returns
     -------
@@ -108,6 +118,17 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
     seen: set = set()
     q = 0.1 * seg
 
+    cos_cone = None if perception_angle is None else float(np.cos(np.radians(perception_angle)))
+    root_dir = np.asarray(initial_direction, np.float64)
+    root_dir = root_dir / max(np.linalg.norm(root_dir), 1e-12)
+
+    def directions(nodes):
+        d = np.tile(root_dir, (len(nodes), 1))
+        has = par[nodes] >= 0
+        v = pos[nodes[has]] - pos[par[nodes[has]]]
+        d[has] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+        return d
+
     def update(new_lo, new_hi):
         idx = np.flatnonzero(alive)
         if len(idx) == 0:
@@ -116,7 +137,23 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         cand = cand[can_grow[cand]]
         if len(cand) == 0:
             return
-        d, j = cKDTree(pos[cand]).query(att[idx], distance_upper_bound=di)
+        tree = cKDTree(pos[cand])
+        if cos_cone is None:
+            d, j = tree.query(att[idx], distance_upper_bound=di)
+        else:
+            k = min(candidates, len(cand))
+            d, j = tree.query(att[idx], k=k, distance_upper_bound=di)
+            d, j = d.reshape(len(idx), k), j.reshape(len(idx), k)
+            ok = np.isfinite(d)
+            jj = np.where(ok, j, 0)
+            nodes = cand[jj]
+            dirs = directions(nodes.ravel()).reshape(len(idx), k, 3)
+            vec = att[idx][:, None, :] - pos[nodes]
+            cosang = np.einsum("akc,akc->ak", vec, dirs) / np.maximum(np.linalg.norm(vec, axis=2), 1e-12)
+            d = np.where(ok & (cosang >= cos_cone), d, np.inf)
+            first = np.argmin(d, axis=1)
+            d = d[np.arange(len(idx)), first]
+            j = jj[np.arange(len(idx)), first]
         better = d < best_d[idx]
         best_d[idx[better]] = d[better]
         best_n[idx[better]] = cand[j[better]]
