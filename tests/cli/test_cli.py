@@ -18,7 +18,7 @@ EXE = Path(sys.executable).parent / "treeform"
 
 
 def cli(*args, timeout=240):
-    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-m", "treeform.cli.app"]
+    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-m", "treeform"]
     return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, "COLUMNS": "120"})
 

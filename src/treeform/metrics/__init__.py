@@ -3,3 +3,34 @@
 from treeform.metrics.reprojection import extent_ratio, iou, reprojection_error
 
 __all__ = ["reprojection_error", "iou", "extent_ratio"]
+
+# tree-form metrics of seed 003 §6
+from treeform.metrics.treeform_metrics import (  # noqa: E402
+    METRIC_NAMES,
+    average_branching_angle,
+    biomass,
+    branching_angles,
+    leaf_area_index,
+    leaf_area_index_triangles,
+    max_radial_trunk_distance,
+    mesh_metrics,
+    metric_vector,
+    tree_height,
+    tree_metrics,
+    trunk_diameter,
+)
+
+__all__ += [
+    "METRIC_NAMES",
+    "average_branching_angle",
+    "biomass",
+    "branching_angles",
+    "leaf_area_index",
+    "leaf_area_index_triangles",
+    "max_radial_trunk_distance",
+    "mesh_metrics",
+    "metric_vector",
+    "tree_height",
+    "tree_metrics",
+    "trunk_diameter",
+]

@@ -7,6 +7,7 @@ from treeform.structures.camera import Camera
 from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, Mesh, MeshPart
 from treeform.structures.photo import Photo
+from treeform.structures.rbv import RadialBoundingVolume
 from treeform.structures.rdm import RadialDistanceMap
 from treeform.structures.segmentation import Segmentation
 from treeform.structures.skeleton import TreeSkeleton
@@ -18,6 +19,7 @@ __all__ = [
     "Mesh",
     "MeshPart",
     "Photo",
+    "RadialBoundingVolume",
     "RadialDistanceMap",
     "Segmentation",
     "TreeSkeleton",
