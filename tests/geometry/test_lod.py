@@ -13,7 +13,7 @@ from treeform.structures import Foliage
 
 
 def test_presets():
-    assert LOD_PRESETS == {"low": 20_000, "medium": 100_000, "high": 400_000, "full": None}
+    assert LOD_PRESETS == {"low": 20_000, "medium": 60_000, "high": 200_000, "full": None}
 
 
 def test_full_detail_is_the_two_parts(big_tree):

@@ -14,7 +14,7 @@ from treeform.structures.skeleton import TreeSkeleton
 
 __all__ = ["LOD_PRESETS", "MIN_RADIAL_SEGMENTS", "plan_lod", "tree_mesh"]
 
-LOD_PRESETS = {"low": 20_000, "medium": 100_000, "high": 400_000, "full": None}
+LOD_PRESETS = {"low": 20_000, "medium": 60_000, "high": 200_000, "full": None}
 """Named ``max_triangles`` budgets for :func:`tree_mesh` (``None``: no limit)."""
 
 MIN_RADIAL_SEGMENTS = 3

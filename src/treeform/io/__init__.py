@@ -9,10 +9,12 @@ from treeform.io.gltf import read_glb, read_glb_counts, write_glb
 from treeform.io.images import MAX_PIXELS, read_mask, read_photo, write_png
 from treeform.io.obj import write_obj
 from treeform.io.ply import read_skeleton_ply, write_skeleton_ply
+from treeform.io.outputs import check_out_dir, write_json, write_staged
 from treeform.io.registry import known_extensions, register_writer, save
 
 __all__ = [
     "MAX_PIXELS",
+    "check_out_dir",
     "known_extensions",
     "read_glb",
     "read_glb_counts",
@@ -22,7 +24,9 @@ __all__ = [
     "register_writer",
     "save",
     "write_glb",
+    "write_json",
     "write_obj",
     "write_png",
     "write_skeleton_ply",
+    "write_staged",
 ]

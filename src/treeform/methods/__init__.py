@@ -10,4 +10,10 @@ METHODS = {
         "synthesis, Computers & Graphics 57 (2016)",
         "treeform.methods.envelope.pipeline:reconstruct",
     ),
+    "learned": (
+        "Botanical tree of a named species by phenomenological bud-based growth (the developmental "
+        "model of the learned single-image method)",
+        "Li et al., Learning to reconstruct botanical trees from single images, ACM TOG 40(6) (2021)",
+        "treeform.methods.learned.grow:grow_tree",
+    ),
 }

@@ -7,7 +7,6 @@ from dataclasses import asdict, dataclass, fields
 from treeform._shared.checks import check_choice, check_positive
 from treeform._shared.errors import InputError
 
-LOD_TRIANGLES = {"low": 20_000, "medium": 60_000, "high": 200_000, "full": None}
 
 
 @dataclass
@@ -67,7 +66,7 @@ class EnvelopeConfig:
 
     def validate(self) -> "EnvelopeConfig":
         check_choice(self.crown, "crown", ("round", "conical"))
-        check_choice(self.lod, "lod", tuple(LOD_TRIANGLES))
+        check_choice(self.lod, "lod", ("low", "medium", "high", "full"))
         if self.tangent_k is not None:
             check_positive(self.tangent_k, "tangent_k")
         for name in ("tree_height", "depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent",

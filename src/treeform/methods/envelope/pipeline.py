@@ -7,21 +7,18 @@ writes the outputs atomically.
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from treeform import __version__
-from treeform._shared.errors import InputError, OutputError
+from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
-from treeform.methods.envelope.config import LOD_TRIANGLES, EnvelopeConfig
+from treeform.io.outputs import check_out_dir, write_json
+from treeform.methods.envelope.config import EnvelopeConfig
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
 
 OUTPUT_FILES = ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png",
@@ -73,18 +70,6 @@ def _fit(photo: Photo, max_size: int) -> Photo:
 
     im = Image.fromarray(photo.image).resize((max(1, round(w * s)), max(1, round(h * s))), Image.LANCZOS)
     return Photo(np.asarray(im), photo.source, photo.scale * s)
-
-
-def _check_out(out) -> Path:
-    out = Path(out)
-    parent = out if out.exists() else out.parent
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out}: exists and is not a directory")
-    if not parent.exists():
-        raise OutputError(f"--out {out}: parent directory {parent} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f"--out {out}: directory is not writable")
-    return out
 
 
 def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: float) -> tuple[Camera, float]:
@@ -163,7 +148,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
     Reconstruction
     """
     cfg = EnvelopeConfig.from_dict({**(config.to_dict() if config else {}), **options})
-    out_dir = _check_out(out) if out is not None else None
+    out_dir = check_out_dir(out) if out is not None else None
     timer = StageTimer(progress)
     rng = as_rng(cfg.seed)
 
@@ -276,9 +261,9 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
             foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
     with timer.stage("mesh"):
-        from treeform.geometry import leaf_texture, tree_mesh
+        from treeform.geometry import LOD_PRESETS, leaf_texture, tree_mesh
 
-        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_TRIANGLES[cfg.lod],
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_texture(seed=cfg.seed),
                          seed=cfg.seed)
         wood = seg.wood_mask
@@ -321,48 +306,26 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                             renders, preview)
     if out_dir is not None:
         with timer.stage("export"):
-            result.files = _write_outputs(result, out_dir, timer)
+            result.files = _write_outputs(result, out_dir)
     metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     metrics["total_seconds"] = round(sum(timer.timings.values()), 4)
     if out_dir is not None:
-        _write_json(out_dir / "metrics.json", metrics)
+        write_json(out_dir / "metrics.json", metrics)
     return result
 
 
-def _write_json(path: Path, data) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
-    os.replace(tmp, path)
+def _write_outputs(res: Reconstruction, out_dir: Path) -> dict:
+    """Write every output into ``out_dir`` all-or-nothing (see :func:`treeform.io.write_staged`)."""
+    from treeform.io import write_glb, write_json, write_obj, write_png, write_skeleton_ply, write_staged
 
-
-def _write_outputs(res: Reconstruction, out_dir: Path, timer: StageTimer) -> dict:
-    """Write every output into a staging folder, then move them into ``out_dir``."""
-    from treeform.io import write_glb, write_obj, write_png, write_skeleton_ply
-
-    parent = out_dir if out_dir.exists() else out_dir.parent
-    try:
-        stage = Path(tempfile.mkdtemp(prefix=".treeform-", dir=parent))
-    except OSError as exc:
-        raise OutputError(f"--out {out_dir}: cannot write ({exc.strerror})") from None
-    try:
-        write_glb(res.mesh, stage / "tree.glb")
-        write_obj(res.mesh, stage / "tree.obj")
-        res.skeleton.save(stage / "skeleton.json")
-        write_skeleton_ply(res.skeleton, stage / "skeleton.ply")
-        write_png(res.preview, stage / "preview.png")
-        _write_json(stage / "config.json", {"treeform": __version__, "method": "envelope",
-                                             "photo": res.photo.source, "config": res.config.to_dict()})
-        _write_json(stage / "metrics.json", res.metrics)
-        try:
-            out_dir.mkdir(exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"--out {out_dir}: cannot create ({exc.strerror})") from None
-        files = {}
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out_dir / f.name)
-            files[f.name] = out_dir / f.name
-        return files
-    except OSError as exc:
-        raise OutputError(f"--out {out_dir}: write failed ({exc.strerror or exc})") from None
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    config = {"treeform": __version__, "method": "envelope", "photo": res.photo.source,
+              "config": res.config.to_dict()}
+    return write_staged(out_dir, [
+        lambda d: write_glb(res.mesh, d / "tree.glb"),
+        lambda d: write_obj(res.mesh, d / "tree.obj"),
+        lambda d: res.skeleton.save(d / "skeleton.json"),
+        lambda d: write_skeleton_ply(res.skeleton, d / "skeleton.ply"),
+        lambda d: write_png(res.preview, d / "preview.png"),
+        lambda d: write_json(d / "config.json", config),
+        lambda d: write_json(d / "metrics.json", res.metrics),
+    ])

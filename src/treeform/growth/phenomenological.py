@@ -1,0 +1,722 @@
+"""Phenomenological bud-based tree growth (seed 003 §4.3, Appendix Tables 2–3).
+
+The growth function of Stava et al. 2014 (after Měch & Prusinkiewicz 1996) with light from a
+shadow-propagation voxel grid (Palubicki et al. 2009). The extracted paper names the
+parameters (Table 3) but gives no formulas; where it is silent or garbled we follow the
+standard published forms and the growth code the authors used for Table 2's trees, and say
+so below. One growth cycle is one year; each cycle, vectorised over all buds:
+
+1. **Light.** Every living internode casts shadow into the voxels below it in a pyramid,
+   ``Δs = a · b^-q`` in the ``(2q+1) × (2q+1)`` voxels ``q`` layers down, ``q = 0 … q_max``
+   (Palubicki et al. 2009 §4; ``a`` = ``light_blocking_factor``, ``b`` =
+   :data:`SHADOW_DECAY`). The light exposure at a voxel is
+   ``I = clip(1 - (s - a) / C, 0, 1)`` (``+ a`` removes the internode's own shadow, ``C`` =
+   :data:`FULL_LIGHT`), and the direction of most light is ``normalise(a · ŷ - ∇s)``.
+2. **Branch levels.** At every node the child carrying the most wood continues the node's
+   branch level; the others start lateral branches one level higher (recomputed yearly).
+3. **Shedding.** A lateral branch at least two years old whose leaf-bearing (young)
+   internodes receive a mean exposure below ``pruning_factor`` times the tree's mean is
+   shed; every lateral branch attached lower than ``low_branch_pruning_factor`` metres is cut.
+4. **Bud fate.** Apical / lateral buds die with probability ``apical_bud_kill_probability``
+   / ``lateral_bud_kill_probability`` per cycle, and when older than ``max_bud_age``. A bud
+   flushes with probability ``exp(-A) · I^F``, ``F`` the apical / lateral bud lighting
+   factor, ``A`` the auxin reaching its node: every apical bud produces
+   ``apical_dominance_base · apical_dominance_age_factor^t`` and the auxin is multiplied by
+   ``apical_dominance_distance_factor`` per metre it travels down the shoots.
+5. **Shoots.** A flushing bud grows ``growth_rate · m`` internodes (stochastic rounding),
+   ``m`` the apical control of its branch level (:func:`apical_control`), each
+   ``internode_length_base · internode_length_age_factor^t`` metres long. Each internode
+   points along ``normalise(d + phototropism · L + g · (0, -1, 0))`` (the vector sum of
+   Měch & Prusinkiewicz and Palubicki et al.), with ``d`` the previous direction turned by a
+   random apical angle, ``L`` the direction of most light and ``g = gravitropism_base +
+   gravitropism_level_factor · level`` (positive: toward gravity). It rolls about its axis
+   by ``roll_angle_mean`` and carries ``lateral_buds`` lateral buds spread evenly around it
+   at ``branching_angle_mean`` from it, and a new apical bud at its end. Nothing grows into
+   the ground; with an envelope (§4.3, §4.4.1) an internode that would end outside it is not
+   created and its bud is shed.
+
+After ``age`` cycles the radii follow the pipe model and gravity bends every internode:
+its direction gets ``w · (0, -1, 0)`` added, ``w = gravity_bending_strength ·
+gravity_bending_angle_factor^(r / r_tip - 1)`` (thin twigs sag, thick limbs hardly do).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform._shared.rng import as_rng
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.structures.skeleton import TreeSkeleton
+
+__all__ = ["GrowthParameters", "PARAMETER_SYMBOLS", "apical_control", "grow"]
+
+SHADOW_DECAY = 2.0
+"""``b`` of the shadow pyramid ``Δs = a · b^-q`` (Palubicki et al. 2009)."""
+SHADOW_DEPTH = 5
+"""``q_max``: layers below an internode its shadow pyramid reaches."""
+FULL_LIGHT = 10.0
+"""Shadow ``s - a`` at which a bud's light exposure reaches 0 (Palubicki's full exposure C)."""
+LIGHT_UP_BIAS = 1.0
+"""Weight of +Y, in units of ``a``, against the shadow gradient in the direction of most light."""
+VOXEL_FACTOR = 1.05
+"""Voxel edge of the shadow grid, in units of ``internode_length_base``."""
+YOUNG_YEARS = 2
+"""Internodes at most this many years old carry leaves (they collect light for shedding)."""
+TIP_RADIUS = 0.005
+"""Radius of a terminal twig in metres (pipe model)."""
+PIPE_EXPONENT = 2.0
+"""Pipe-model exponent: ``r_parent^e = Σ r_child^e`` (2 = Leonardo's rule)."""
+
+_UP = np.array([0.0, 1.0, 0.0])
+
+
+@dataclass
+class GrowthParameters:
+    """Every parameter of the phenomenological growth model (seed 003 Appendix Table 3).
+
+    The defaults are Table 2's oak. Angles are in degrees, lengths in metres, time in years
+    (growth cycles). Each field's docstring gives Table 3's symbol and meaning; the extracted
+    table prints F_AAF and F_ALF twice, the second time for the apical control age and level
+    factors (called F_ACAF and F_ACLF here).
+    """
+
+    lateral_buds: int = 3
+    """G_NLB – number of lateral buds created per internode during growth."""
+    apical_angle_variance: float = 20.0
+    """G_AAV – variance (degrees) of the angle between the direction of the parent shoot and
+    the direction of its apical bud: the deviation is 2-D normal with σ = G_AAV / 2 per axis,
+    as in the authors' code."""
+    branching_angle_mean: float = 29.0
+    """G_BAM – mean angle (degrees) between the direction of the parent shoot and a lateral bud."""
+    branching_angle_variance: float = 2.0
+    """G_BAV – variance (degrees) of the branching angle: normal with σ = G_BAV / 2; the
+    buds' positions around the internode are jittered by up to ± G_BAV too (authors' code)."""
+    roll_angle_mean: float = 91.0
+    """G_RAM – mean orientation (roll) angle (degrees) of the lateral buds of a new internode
+    relative to those of the previous one. The buds of one internode are spread evenly
+    around it (360° / G_NLB apart) and the internode rolls about its axis by this angle, as
+    in the authors' code; the extracted Table 3 wording ("between two lateral buds created
+    with the same internode") is ambiguous about which pair of buds is meant."""
+    roll_angle_variance: float = 1.0
+    """G_RAV – variance (degrees) of the roll angle: uniform within ± G_RAV (authors' code)."""
+    apical_bud_kill_probability: float = 0.0
+    """F_AKP – probability that a given apical bud dies during a growth cycle."""
+    lateral_bud_kill_probability: float = 0.21
+    """F_LKP – probability that a given lateral bud dies during a growth cycle."""
+    apical_bud_lighting_factor: float = 0.39
+    """F_ALF – influence of the light exposure I (0–1) on an apical bud's growth probability,
+    which is proportional to I ** F_ALF (0: light does not matter)."""
+    lateral_bud_lighting_factor: float = 1.0
+    """F_LLF – influence of the light exposure I on a lateral bud's growth probability (I ** F_LLF)."""
+    apical_dominance_base: float = 3.13
+    """F_ADB – base level of auxin an apical bud produces to inhibit the buds below it from
+    growing (a bud under auxin A flushes exp(-A) times as often)."""
+    apical_dominance_distance_factor: float = 0.13
+    """F_ADF – reduction of auxin by transmission along parent shoots: factor per metre."""
+    apical_dominance_age_factor: float = 0.82
+    """F_AAF – reduction of auxin with the tree's age: production ADB · F_AAF^t in year t."""
+    growth_rate: float = 3.0
+    """F_GR – expected number of internodes a shoot generates during a growth cycle."""
+    internode_length_base: float = 1.0
+    """F_ILB – base distance (metres) between two adjacent internodes on the same shoot."""
+    internode_length_age_factor: float = 0.93
+    """F_IAF – internode length factor per year of the tree's age (length ILB · IAF^t)."""
+    apical_control_base: float = 2.2
+    """F_ACB – impact of the branch level on the growth rate: with control C > 1 each branch
+    level grows about C times fewer internodes than its parent level (excurrent); with C < 1
+    the outermost shoots grow fastest (decurrent). See :func:`apical_control`."""
+    apical_control_age_factor: float = 0.5
+    """F_ACAF (printed a second time as F_AAF) – relation of the apical control to the tree's
+    age: C(t) = F_ACB · F_ACAF^t."""
+    apical_control_level_factor: float = 1.0
+    """F_ACLF (printed a second time as F_ALF) – relation of the apical control to the branch
+    level: the step from level k - 1 to k is 1 + (C - 1) · F_ACLF^k."""
+    max_bud_age: float = 20.0
+    """F_MBA – maximum life time (years) of a bud before forming a new shoot; older buds die."""
+    light_blocking_factor: float = 0.5
+    """E_LBF – how much light an internode (its branch and leaves) blocks: the shadow ``a`` it
+    casts into its own voxel (``a · b^-q`` in the voxels q layers below)."""
+    phototropism: float = 0.32
+    """E_PHO – impact of the direction of most incoming light: its weight in a new
+    internode's direction."""
+    gravitropism_base: float = 0.08
+    """E_GGB – impact of the direction of gravity: its weight in a new internode's direction
+    (positive: shoots turn down, negative: up; the authors' convention)."""
+    gravitropism_level_factor: float = -0.03
+    """E_GLF – relation of the gravitropism to the branch level: weight E_GGB + E_GLF · level."""
+    pruning_factor: float = 0.7
+    """E_PPF – impact of the incoming light on shedding: a lateral branch whose leaf-bearing
+    internodes receive less than E_PPF times the tree's mean light exposure is shed."""
+    low_branch_pruning_factor: float = 1.3
+    """E_LPF – height (metres) below which all lateral branches are pruned."""
+    gravity_bending_strength: float = 0.72
+    """E_GBS – impact of gravity on structural bending: the downward weight (0–1) added to the
+    direction of a terminal twig."""
+    gravity_bending_angle_factor: float = 0.83
+    """E_GAF – relation of gravity bending to branch thickness: the weight is multiplied by
+    E_GAF per twig radius of extra thickness (E_GBS · E_GAF^(r / r_tip - 1))."""
+    age: int = 10
+    """t – desired age of the tree in years (number of growth cycles)."""
+
+    def validate(self) -> "GrowthParameters":
+        """Check every value; raise :class:`InputError` naming the first bad one."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+                raise InputError(f"{f.name}: expected a finite number, got {v!r}")
+        for name in ("lateral_buds", "age"):
+            v = getattr(self, name)
+            if float(v) != int(v):
+                raise InputError(f"{name}: expected an integer, got {v!r}")
+            setattr(self, name, int(v))
+        for f in fields(self):
+            if f.name not in ("lateral_buds", "age"):
+                setattr(self, f.name, float(getattr(self, f.name)))
+        if not 0 <= self.lateral_buds <= 8:
+            raise InputError(f"lateral_buds: expected 0..8, got {self.lateral_buds}")
+        if not 1 <= self.age <= 60:
+            raise InputError(f"age: expected 1..60 years, got {self.age}")
+        for name in ("apical_bud_kill_probability", "lateral_bud_kill_probability"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise InputError(f"{name}: expected a probability in [0, 1], got {getattr(self, name)}")
+        for name in ("apical_angle_variance", "branching_angle_variance", "roll_angle_variance",
+                     "apical_bud_lighting_factor", "lateral_bud_lighting_factor", "apical_dominance_base",
+                     "light_blocking_factor", "pruning_factor", "low_branch_pruning_factor",
+                     "gravity_bending_strength"):
+            if getattr(self, name) < 0:
+                raise InputError(f"{name}: expected a non-negative number, got {getattr(self, name)}")
+        for name in ("growth_rate", "internode_length_base", "internode_length_age_factor", "apical_control_base",
+                     "apical_control_age_factor", "apical_control_level_factor", "max_bud_age",
+                     "apical_dominance_distance_factor", "apical_dominance_age_factor",
+                     "gravity_bending_angle_factor"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"{name}: expected a positive number, got {getattr(self, name)}")
+        if self.gravity_bending_strength >= 1:
+            raise InputError(f"gravity_bending_strength: expected < 1, got {self.gravity_bending_strength}")
+        return self
+
+    def to_dict(self) -> dict:
+        """Field name -> value (JSON-ready)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, base: "GrowthParameters | None" = None) -> "GrowthParameters":
+        """Build from a dict of field values; unknown names raise :class:`InputError`.
+
+        Fields missing from ``d`` come from ``base`` (default: every field required).
+        """
+        if not isinstance(d, dict):
+            raise InputError(f"parameters: expected a mapping, got {type(d).__name__}")
+        names = [f.name for f in fields(cls)]
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise InputError(f"parameters: unknown name(s) {', '.join(unknown)}; known: {', '.join(names)}")
+        if base is None:
+            missing = [n for n in names if n not in d]
+            if missing:
+                raise InputError(f"parameters: missing {', '.join(missing)}")
+            return cls(**d).validate()
+        return replace(base, **d).validate()
+
+
+PARAMETER_SYMBOLS = {
+    "lateral_buds": "G_NLB", "apical_angle_variance": "G_AAV", "branching_angle_mean": "G_BAM",
+    "branching_angle_variance": "G_BAV", "roll_angle_mean": "G_RAM", "roll_angle_variance": "G_RAV",
+    "apical_bud_kill_probability": "F_AKP", "lateral_bud_kill_probability": "F_LKP",
+    "apical_bud_lighting_factor": "F_ALF", "lateral_bud_lighting_factor": "F_LLF",
+    "apical_dominance_base": "F_ADB", "apical_dominance_distance_factor": "F_ADF",
+    "apical_dominance_age_factor": "F_AAF", "growth_rate": "F_GR", "internode_length_base": "F_ILB",
+    "internode_length_age_factor": "F_IAF", "apical_control_base": "F_ACB",
+    "apical_control_age_factor": "F_ACAF", "apical_control_level_factor": "F_ACLF", "max_bud_age": "F_MBA",
+    "light_blocking_factor": "E_LBF", "phototropism": "E_PHO", "gravitropism_base": "E_GGB",
+    "gravitropism_level_factor": "E_GLF", "pruning_factor": "E_PPF", "low_branch_pruning_factor": "E_LPF",
+    "gravity_bending_strength": "E_GBS", "gravity_bending_angle_factor": "E_GAF", "age": "t",
+}
+"""Field name -> the symbol of seed 003 Table 3 (F_ACAF / F_ACLF are printed F_AAF / F_ALF there)."""
+
+
+def apical_control(params: GrowthParameters, level, year, *, top_level=None) -> np.ndarray:
+    """Growth-rate multiplier (0–1) of a shoot of branch ``level`` in cycle ``year`` (seed 003 Table 3).
+
+    The apical control of the tree at age ``t`` is ``C = ACB · ACAF^t``. While ``C >= 1``
+    (excurrent growth) each branch level grows ``1 + (C - 1) · ACLF^k`` times fewer
+    internodes than the level below it: ``m = 1 / Π_{k=1..level} (1 + (C - 1) · ACLF^k)``.
+    Once ``C < 1`` (decurrent growth) the order reverses: the outermost shoots of a branch
+    grow fastest, the inner ones ``m = Π_{k=1..r} (1 - (1 - C) · ACLF^k)`` with
+    ``r = top_level - level + 1`` (``top_level``: highest branch level in the subtree the bud
+    sits on). The extracted text gives no formula; this is the form of the authors' growth
+    code (Li et al.'s TreeUtilities), which produced Table 2's trees.
+
+    Parameters
+    ----------
+    params : GrowthParameters
+    level : array_like of int, shape (K,)
+        Branch level of each shoot (0: trunk).
+    year : int
+    top_level : array_like of int, shape (K,), optional
+        Needed once ``C < 1``; default ``level``.
+
+    Returns
+    -------
+    ndarray, shape (K,)
+
+    Examples
+    --------
+    >>> p = GrowthParameters(apical_control_base=3.0, apical_control_age_factor=1.0)
+    >>> apical_control(p, [0, 1, 2], 0).round(3).tolist()
+    [1.0, 0.333, 0.111]
+    >>> p = GrowthParameters(apical_control_base=0.5, apical_control_age_factor=1.0)
+    >>> apical_control(p, [0, 1, 2], 0, top_level=[2, 2, 2]).round(3).tolist()
+    [0.125, 0.25, 0.5]
+    """
+    level = np.asarray(level, np.int64)
+    c = params.apical_control_base * params.apical_control_age_factor ** year
+    f = params.apical_control_level_factor
+    if c >= 1:
+        idx = np.clip(level, 0, None)
+        steps = 1.0 + (c - 1.0) * f ** np.arange(1, int(idx.max(initial=0)) + 1)
+    else:
+        top = level if top_level is None else np.asarray(top_level, np.int64)
+        idx = np.clip(top - level + 1, 0, None)
+        steps = 1.0 / (1.0 - (1.0 - c) * f ** np.arange(1, int(idx.max(initial=0)) + 1))
+    table = 1.0 / np.concatenate([[1.0], np.cumprod(steps)])
+    return table[idx]
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _perpendicular(d: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unit component of ``v`` perpendicular to unit ``d`` (any perpendicular where ``v ∥ d``)."""
+    w = v - np.sum(v * d, axis=-1, keepdims=True) * d
+    n = np.linalg.norm(w, axis=-1)
+    bad = n < 1e-6
+    if np.any(bad):
+        alt = np.where(np.abs(d[bad, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 0, 1.0]]))
+        w[bad] = alt - np.sum(alt * d[bad], axis=-1, keepdims=True) * d[bad]
+        n[bad] = np.linalg.norm(w[bad], axis=-1)
+    return w / n[..., None]
+
+
+def _turn(d: np.ndarray, angle_deg: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Turn unit directions ``d`` by ``angle_deg`` about random axes perpendicular to them."""
+    u = _perpendicular(d, rng.normal(size=d.shape))
+    a = np.radians(angle_deg)[:, None]
+    return _unit(np.cos(a) * d + np.sin(a) * u)
+
+
+class _Nodes:
+    """Growable arrays of internodes (node i is the end of the internode from parent[i])."""
+
+    def __init__(self, cap: int = 4096):
+        self.n = 0
+        self.pos = np.empty((cap, 3))
+        self.parent = np.empty(cap, np.int64)
+        self.year = np.empty(cap, np.int64)
+        self.depth = np.empty(cap, np.int64)
+        self.alive = np.empty(cap, bool)
+
+    def add(self, pos, parent, year) -> np.ndarray:
+        k = len(pos)
+        if self.n + k > len(self.parent):
+            cap = 2 * (self.n + k)
+            for name in ("pos", "parent", "year", "depth", "alive"):
+                old = getattr(self, name)
+                new = np.empty((cap,) + old.shape[1:], old.dtype)
+                new[: self.n] = old[: self.n]
+                setattr(self, name, new)
+        s = slice(self.n, self.n + k)
+        parent = np.asarray(parent, np.int64)
+        self.pos[s] = pos
+        self.parent[s] = parent
+        self.year[s] = year
+        self.depth[s] = np.where(parent >= 0, self.depth[np.maximum(parent, 0)] + 1, 0)
+        self.alive[s] = True
+        self.n += k
+        return np.arange(s.start, s.stop)
+
+
+class _Levels:
+    """Nodes bucketed by graph depth, for vectorised sweeps up (to the root) and down the tree."""
+
+    def __init__(self, parent: np.ndarray, depth: np.ndarray, nodes: np.ndarray):
+        d = depth[nodes]
+        order = nodes[np.argsort(d, kind="stable")]
+        ds = depth[order]
+        cuts = np.flatnonzero(np.diff(ds)) + 1
+        self.buckets = [b for b in np.split(order, cuts) if len(b) and depth[b[0]] > 0]
+        self.parent = parent
+        self.n = len(parent)
+
+    def accumulate(self, values: np.ndarray, factor: float) -> np.ndarray:
+        """``A[i] = values[i] + factor · Σ_children A[c]`` (children before parents)."""
+        a = np.array(values, np.float64, copy=True)
+        for b in reversed(self.buckets):
+            np.add.at(a, self.parent[b], factor * a[b])
+        return a
+
+    def accumulate_decay(self, values: np.ndarray, factor: float, pos: np.ndarray) -> np.ndarray:
+        """``A[i] = values[i] + Σ_children factor^|c - i| · A[c]`` (decay per metre of internode)."""
+        a = np.array(values, np.float64, copy=True)
+        for b in reversed(self.buckets):
+            dist = np.linalg.norm(pos[b] - pos[self.parent[b]], axis=1)
+            np.add.at(a, self.parent[b], factor ** dist * a[b])
+        return a
+
+    def subtree_max(self, values: np.ndarray) -> np.ndarray:
+        """Largest value in each node's subtree (itself included)."""
+        a = np.array(values, copy=True)
+        for b in reversed(self.buckets):
+            np.maximum.at(a, self.parent[b], a[b])
+        return a
+
+    def branch_levels(self, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Branch level of every node, and which nodes start a lateral branch.
+
+        At each node the child carrying the most ``weight`` in its subtree continues the
+        node's level (the main axis); every other child starts a branch one level higher.
+        """
+        nodes = np.concatenate(self.buckets) if self.buckets else np.zeros(0, np.int64)
+        starts = np.zeros(self.n, bool)
+        level = np.zeros(self.n, np.int64)
+        if len(nodes) == 0:
+            return level, starts
+        par = self.parent[nodes]
+        order = np.lexsort((nodes, -weight[nodes], par))
+        first = np.ones(len(order), bool)
+        first[1:] = par[order[1:]] != par[order[:-1]]
+        starts[nodes[order[~first]]] = True
+        for b in self.buckets:
+            level[b] = level[self.parent[b]] + starts[b]
+        return level, starts
+
+    def spread(self, flags: np.ndarray) -> np.ndarray:
+        """``flags`` OR-ed down to every descendant."""
+        f = np.array(flags, bool, copy=True)
+        for b in self.buckets:
+            f[b] |= f[self.parent[b]]
+        return f
+
+    def place(self, root: np.ndarray, segments: np.ndarray) -> np.ndarray:
+        """Positions from segment vectors: ``p[i] = p[parent[i]] + segments[i]``."""
+        p = np.empty_like(segments)
+        p[0] = root
+        for b in self.buckets:
+            p[b] = p[self.parent[b]] + segments[b]
+        return p
+
+
+class _ShadowGrid:
+    """Shadow-propagation voxel grid (Palubicki et al. 2009 §4) over the current tree.
+
+    ``s`` at a voxel is ``Σ a · b^-q`` over the internodes in the ``(2q+1)²`` voxels ``q``
+    layers above it (``q = 0 … SHADOW_DEPTH``), computed with one summed-area table.
+    """
+
+    def __init__(self, points: np.ndarray, voxel: float, a: float):
+        q_max = SHADOW_DEPTH
+        self.voxel = voxel
+        self.a = a
+        margin_lo = np.array([q_max + 2, q_max + 2, q_max + 2])
+        margin_hi = np.array([q_max + 2, 8, q_max + 2])
+        lo = np.floor(points.min(0) / voxel) - margin_lo
+        hi = np.floor(points.max(0) / voxel) + margin_hi
+        self.lo = lo * voxel
+        shape = (hi - lo + 1).astype(np.int64)
+        self.shape = shape
+        nx, ny, nz = (int(s) for s in shape)
+        ijk = np.floor((points - self.lo) / voxel).astype(np.int64)
+        counts = np.bincount(np.ravel_multi_index(ijk.T, (nx, ny, nz)), minlength=nx * ny * nz)
+        counts = counts.reshape(nx, ny, nz).astype(np.float64)
+        # summed-area table over x and z, padded so every box lookup is a plain slice
+        p = q_max + 1
+        sat = np.zeros((nx + 2 * q_max + 1, ny, nz + 2 * q_max + 1))
+        sat[p:p + nx, :, p:p + nz] = counts
+        sat = sat.cumsum(0).cumsum(2)
+        shadow = np.zeros((nx, ny, nz))
+        for q in range(q_max + 1):
+            x1, x0 = slice(p + q, p + q + nx), slice(p - q - 1, p - q - 1 + nx)
+            z1, z0 = slice(p + q, p + q + nz), slice(p - q - 1, p - q - 1 + nz)
+            box = sat[x1, :, z1] - sat[x0, :, z1] - sat[x1, :, z0] + sat[x0, :, z0]
+            if q < ny:
+                shadow[:, : ny - q, :] += (a * SHADOW_DECAY ** -q) * box[:, q:, :]
+        self.shadow = shadow
+        gx, gy, gz = np.gradient(shadow)
+        self.grad = np.stack([gx, gy, gz], -1)
+
+    def _index(self, points: np.ndarray):
+        ijk = np.floor((points - self.lo) / self.voxel).astype(np.int64)
+        return tuple(np.clip(ijk[:, k], 0, self.shape[k] - 1) for k in range(3))
+
+    def exposure(self, points: np.ndarray) -> np.ndarray:
+        """Light exposure in [0, 1] at ``points`` (N, 3)."""
+        s = self.shadow[self._index(points)]
+        return np.clip(1.0 - (s - self.a) / FULL_LIGHT, 0.0, 1.0)
+
+    def light_direction(self, points: np.ndarray) -> np.ndarray:
+        """Unit direction of most light at ``points``: ``normalise(a · ŷ - ∇s)``."""
+        g = self.grad[self._index(points)]
+        return _unit(LIGHT_UP_BIAS * max(self.a, 1e-3) * _UP - g)
+
+
+# ------------------------------------------------------------------------------------- growth
+def _check_envelope(envelope):
+    if envelope is None:
+        return None
+    contains = getattr(envelope, "contains", None)
+    if not callable(contains):
+        raise InputError(f"envelope: expected an object with contains(points) -> bool array, "
+                         f"got {type(envelope).__name__}")
+
+    def inside(points: np.ndarray) -> np.ndarray:
+        ok = np.asarray(contains(points), bool).reshape(-1)
+        if ok.shape != (len(points),):
+            raise InputError(f"envelope.contains: expected {len(points)} booleans, got shape {ok.shape}")
+        return ok
+
+    return inside
+
+
+def grow(params: GrowthParameters, *, seed=0, envelope=None, progress: ProgressCallback | None = None) -> TreeSkeleton:
+    """Grow a tree with the phenomenological bud-based model (seed 003 §4.3, Tables 2–3).
+
+    See the module docstring for the growth function. The root is at the origin, the trunk
+    starts along +Y.
+
+    Parameters
+    ----------
+    params : GrowthParameters
+        E.g. from :func:`treeform.growth.species.load_species`.
+    seed : int or numpy.random.Generator
+        Same parameters + seed -> identical skeleton.
+    envelope : object, optional
+        Anything with ``contains(points (N, 3)) -> (N,) bool`` (e.g. a
+        :class:`~treeform.structures.RadialBoundingVolume`); it must contain the origin.
+        Growth stays inside (seed 003 §4.3, §4.4.1): an internode that would end outside is
+        not created and its bud is shed. Gravity bending is undone where it would move a
+        node outside.
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` for the stages ``"grow"`` and ``"structure"``.
+
+    Returns
+    -------
+    TreeSkeleton
+        positions (N, 3) in metres (Y up), parent (``parent[i] < i``), pipe-model radius,
+        branch order, and age = the growth cycle (year, 0-based) that created each node.
+        ``meta`` holds the parameters and the seed.
+
+    Examples
+    --------
+    >>> sk = grow(GrowthParameters(age=3), seed=1)
+    >>> bool(sk.positions[:, 1].max() > 1), sk.n_nodes == grow(GrowthParameters(age=3), seed=1).n_nodes
+    (True, True)
+    """
+    if not isinstance(params, GrowthParameters):
+        raise InputError(f"params: expected a GrowthParameters, got {type(params).__name__}")
+    p = replace(params).validate()
+    inside = _check_envelope(envelope)
+    if inside is not None and not inside(np.zeros((1, 3)))[0]:
+        raise InputError("envelope: must contain the tree's base (the origin)")
+    rng = as_rng(seed)
+    timer = StageTimer(progress)
+    with timer.stage("grow"):
+        nodes = _simulate(p, rng, inside)
+    with timer.stage("structure"):
+        skeleton = _structure(p, nodes, inside)
+    skeleton.meta = {"method": "phenomenological",
+                     "seed": int(seed) if isinstance(seed, (int, np.integer)) else None, "parameters": p.to_dict()}
+    return skeleton
+
+
+def _branches(nodes: _Nodes, alive: np.ndarray):
+    """Depth buckets of the living nodes, their branch levels and the lateral-branch starts.
+
+    The child carrying the most wood (internode length in its subtree) continues its
+    parent's branch level (recomputed every cycle, so a lateral that takes over a dead
+    leader becomes the main axis).
+    """
+    n = nodes.n
+    levels = _Levels(nodes.parent[:n], nodes.depth[:n], alive)
+    seg = np.zeros(n)
+    kids = alive[alive > 0]
+    seg[kids] = np.linalg.norm(nodes.pos[kids] - nodes.pos[nodes.parent[kids]], axis=1)
+    level, starts = levels.branch_levels(levels.accumulate(seg, 1.0))
+    return levels, level, starts
+
+
+def _simulate(p: GrowthParameters, rng: np.random.Generator, inside) -> _Nodes:
+    """Run ``p.age`` growth cycles (see the module docstring); returns every node ever grown."""
+    nodes = _Nodes()
+    nodes.add(np.zeros((1, 3)), [-1], 0)
+    # buds: node they sit on, direction, roll reference ("side", perpendicular to the direction),
+    # apical?, age in years
+    b_node = np.zeros(1, np.int64)
+    b_dir = _UP[None].copy()
+    b_side = np.array([[1.0, 0.0, 0.0]])
+    b_apical = np.ones(1, bool)
+    b_age = np.zeros(1, np.int64)
+    voxel = VOXEL_FACTOR * p.internode_length_base
+    nlb = p.lateral_buds
+    bud_roll = 2.0 * np.pi * np.arange(1, nlb + 1) / max(nlb, 1)
+
+    for year in range(p.age):
+        n = nodes.n
+        alive = np.flatnonzero(nodes.alive[:n])
+        grid = _ShadowGrid(nodes.pos[alive], voxel, p.light_blocking_factor)
+        light = np.zeros(n)
+        light[alive] = grid.exposure(nodes.pos[alive])
+        levels, level, starts = _branches(nodes, alive)
+
+        # --- shedding of shaded lateral branches and of every lateral branch below the pruning height
+        if year >= 1:
+            young = nodes.alive[:n] & (year - nodes.year[:n] <= YOUNG_YEARS)
+            lit = levels.accumulate(light * young, 1.0)
+            cnt = levels.accumulate(young.astype(np.float64), 1.0)
+            mean_light = np.where(cnt > 0, lit / np.maximum(cnt, 1e-12), 0.0)
+            tree_light = light[young].mean() if young.any() else 1.0
+            shaded = starts & (year - nodes.year[:n] >= 2) & (mean_light < p.pruning_factor * tree_light)
+            low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
+            cut = shaded | low
+            if cut.any():
+                dead = levels.spread(cut)
+                nodes.alive[:n] &= ~dead
+                alive = np.flatnonzero(nodes.alive[:n])
+                levels = _Levels(nodes.parent[:n], nodes.depth[:n], alive)
+
+        # --- bud fate: death, then flushing under light and apical dominance
+        keep = nodes.alive[b_node]
+        if year >= 1:
+            r = rng.random(len(b_node))
+            keep &= ~np.where(b_apical, r < p.apical_bud_kill_probability, r < p.lateral_bud_kill_probability)
+        keep &= b_age <= p.max_bud_age
+        b_node, b_dir, b_side, b_apical, b_age = (
+            b_node[keep], b_dir[keep], b_side[keep], b_apical[keep], b_age[keep])
+        if len(b_node) == 0:
+            break
+        own = np.zeros(n)
+        np.add.at(own, b_node[b_apical], p.apical_dominance_base * p.apical_dominance_age_factor ** year)
+        auxin = levels.accumulate_decay(own, p.apical_dominance_distance_factor, nodes.pos[:n])
+        inhibitor = auxin[b_node] - np.where(b_apical, own[b_node], 0.0)
+        expo = light[b_node]
+        prob = np.exp(-np.maximum(inhibitor, 0.0)) * np.where(
+            b_apical, expo ** p.apical_bud_lighting_factor, expo ** p.lateral_bud_lighting_factor)
+        flush = rng.random(len(b_node)) < prob
+        # no lateral shoots below the pruning height once the tree has grown above it
+        if nodes.pos[alive, 1].max() > p.low_branch_pruning_factor:
+            flush &= b_apical | (nodes.pos[b_node, 1] >= p.low_branch_pruning_factor)
+        s_level = level[b_node] + ~b_apical
+        top = levels.subtree_max(np.where(nodes.alive[:n], level, 0))
+        rate = p.growth_rate * apical_control(p, s_level, year, top_level=top[b_node])
+        n_int = np.floor(rate + rng.random(len(b_node))).astype(np.int64)
+        flush &= n_int > 0
+
+        # shoots from the flushing buds; the other buds wait a year
+        s_node, s_dir, s_side = b_node[flush], b_dir[flush], b_side[flush]
+        s_level, s_n, s_apical = s_level[flush], n_int[flush], b_apical[flush]
+        stay = ~flush
+        b_node, b_dir, b_side, b_apical, b_age = (
+            b_node[stay], b_dir[stay], b_side[stay], b_apical[stay], b_age[stay] + 1)
+        new_buds = []
+        m = len(s_node)
+        s_pos = nodes.pos[s_node].copy()
+        s_ok = np.ones(m, bool)
+        s_grown = np.zeros(m, bool)
+        length = p.internode_length_base * p.internode_length_age_factor ** year
+        # gravitropism weights the direction of gravity (-Y): positive bends down, negative up
+        tropism = -(p.gravitropism_base + p.gravitropism_level_factor * s_level)[:, None] * _UP
+        for k in range(int(s_n.max()) if m else 0):
+            act = np.flatnonzero(s_ok & (s_n > k))
+            if len(act) == 0:
+                break
+            d = s_dir[act]
+            turn = s_apical[act] | (k > 0)
+            if p.apical_angle_variance > 0 and turn.any():
+                dev = rng.normal(0.0, p.apical_angle_variance / 2.0, (int(turn.sum()), 2))
+                d[turn] = _turn(d[turn], np.hypot(dev[:, 0], dev[:, 1]), rng)
+            d = _unit(d + p.phototropism * grid.light_direction(s_pos[act]) + tropism[act])
+            new_pos = s_pos[act] + length * d
+            ok = new_pos[:, 1] >= 0.0  # nothing grows into the ground
+            if inside is not None:
+                ok &= inside(new_pos)
+            if not ok.all():
+                s_ok[act[~ok]] = False
+                act, d, new_pos = act[ok], d[ok], new_pos[ok]
+                if len(act) == 0:
+                    continue
+            idx = nodes.add(new_pos, s_node[act], year)
+            # the internode rolls about its axis; its lateral buds are spread evenly around it
+            cnt = len(act)
+            roll = np.radians(p.roll_angle_mean + rng.uniform(-1.0, 1.0, cnt) * p.roll_angle_variance)[:, None]
+            side = _perpendicular(d, s_side[act])
+            binorm = np.cross(d, side)
+            side = np.cos(roll) * side + np.sin(roll) * binorm
+            if nlb:
+                binorm = np.cross(d, side)
+                phi = bud_roll[None, :] + np.radians(rng.uniform(-1.0, 1.0, (cnt, nlb)) * p.branching_angle_variance)
+                beta = np.radians(p.branching_angle_mean + rng.normal(0.0, p.branching_angle_variance / 2.0, (cnt, nlb)))
+                u = np.cos(phi)[..., None] * side[:, None] + np.sin(phi)[..., None] * binorm[:, None]
+                bdir = _unit(np.cos(beta)[..., None] * d[:, None] + np.sin(beta)[..., None] * u).reshape(-1, 3)
+                new_buds.append((np.repeat(idx, nlb), bdir, _perpendicular(bdir, np.repeat(d, nlb, 0))))
+            s_dir[act], s_side[act], s_pos[act], s_node[act] = d, side, new_pos, idx
+            s_grown[act] = True
+        # every shoot that was not stopped by the envelope ends in a new apical bud
+        cont = s_ok & s_grown
+        parts = [(b_node, b_dir, b_side, b_apical, b_age),
+                 (s_node[cont], s_dir[cont], s_side[cont], np.ones(int(cont.sum()), bool),
+                  np.zeros(int(cont.sum()), np.int64))]
+        for bn, bd, bs in new_buds:
+            parts.append((bn, bd, bs, np.zeros(len(bn), bool), np.zeros(len(bn), np.int64)))
+        b_node, b_dir, b_side, b_apical, b_age = (np.concatenate(c) for c in zip(*parts))
+    # the last cycle's shoots are pruned below the pruning height too
+    n = nodes.n
+    levels, _, starts = _branches(nodes, np.flatnonzero(nodes.alive[:n]))
+    low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
+    if low.any():
+        nodes.alive[:n] &= ~levels.spread(low)
+    return nodes
+
+
+def _structure(p: GrowthParameters, nodes: _Nodes, inside) -> TreeSkeleton:
+    """Compact the living nodes, give them pipe-model radii and bend them under gravity."""
+    from treeform.growth.radii import branch_orders, pipe_model_radii
+
+    n = nodes.n
+    keep = np.flatnonzero(nodes.alive[:n])
+    remap = np.full(n, -1, np.int64)
+    remap[keep] = np.arange(len(keep))
+    parent = np.where(nodes.parent[keep] >= 0, remap[nodes.parent[keep].clip(0)], -1)
+    pos = nodes.pos[keep]
+    depth = nodes.depth[keep]
+    radius = pipe_model_radii(parent, tip_radius=TIP_RADIUS, exponent=PIPE_EXPONENT)
+    if len(keep) > 1 and p.gravity_bending_strength > 0:
+        levels = _Levels(parent, depth, np.arange(len(keep)))
+        seg = np.zeros_like(pos)
+        seg[1:] = pos[1:] - pos[parent[1:]]
+        seg_len = np.linalg.norm(seg, axis=1, keepdims=True)
+        w = p.gravity_bending_strength * p.gravity_bending_angle_factor ** (radius / TIP_RADIUS - 1.0)
+        bent = seg.copy()
+        bent[1:] = _unit(_unit(seg[1:]) - w[1:, None] * _UP) * seg_len[1:]
+        new_pos = levels.place(pos[0], bent)
+
+        def outside(q):
+            out = q[:, 1] < 0.0
+            return out | ~inside(q) if inside is not None else out
+
+        # undo the bending along the path to every node it would push into the ground or out of the envelope
+        for _ in range(8):
+            out = outside(new_pos)
+            if not out.any():
+                break
+            up_path = levels.accumulate(out.astype(np.float64), 1.0) > 0
+            bent[up_path] = seg[up_path]
+            new_pos = levels.place(pos[0], bent)
+        else:
+            new_pos = pos
+        pos = new_pos
+    return TreeSkeleton(pos, parent, radius, branch_orders(parent, radius), nodes.year[keep].astype(np.float64))

@@ -1,0 +1,83 @@
+"""Output folders written all-or-nothing: check first, stage, then rename into place."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Callable, Iterable
+
+from treeform._shared.errors import OutputError
+
+
+def check_out_dir(out) -> Path:
+    """Fail early, with one line, if ``out`` cannot become an output folder.
+
+    ``out`` may exist (a folder) or not (its parent must exist and be writable).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> check_out_dir(Path(tempfile.gettempdir()) / "new-treeform-folder").name
+    'new-treeform-folder'
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out}: exists and is not a directory")
+    parent = out if out.exists() else out.parent
+    if not parent.exists():
+        raise OutputError(f"--out {out}: parent directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out}: directory is not writable")
+    return out
+
+
+def write_json(path, data) -> Path:
+    """Write indented, key-sorted JSON atomically (temporary name, then rename)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+    return path
+
+
+def write_staged(out_dir, writers: Iterable[Callable[[Path], object]]) -> dict:
+    """Run ``writer(staging_dir)`` for each writer, then move every file made into ``out_dir``.
+
+    The staging folder sits beside ``out_dir`` (same file system, so the moves are
+    renames) and is removed in any case: on failure no output file appears.
+
+    Returns
+    -------
+    dict
+        File name -> final path.
+
+    Raises
+    ------
+    OutputError
+        One line naming ``out_dir`` when anything cannot be written.
+    """
+    out_dir = Path(out_dir)
+    parent = out_dir if out_dir.exists() else out_dir.parent
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=".treeform-", dir=parent))
+    except OSError as exc:
+        raise OutputError(f"--out {out_dir}: cannot write ({exc.strerror})") from None
+    try:
+        for writer in writers:
+            writer(stage)
+        try:
+            out_dir.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"--out {out_dir}: cannot create ({exc.strerror})") from None
+        files = {}
+        for f in sorted(stage.iterdir()):
+            os.replace(f, out_dir / f.name)
+            files[f.name] = out_dir / f.name
+        return files
+    except OSError as exc:
+        raise OutputError(f"--out {out_dir}: write failed ({exc.strerror or exc})") from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

@@ -1,0 +1,87 @@
+"""Configuration of the grow pipeline of the learned method (seed 003 §4.3, Appendix Tables 2–3)."""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import asdict, dataclass, field, fields
+
+from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.errors import InputError
+
+
+def _lod_names() -> tuple:
+    from treeform.geometry import LOD_PRESETS
+
+    return tuple(LOD_PRESETS)
+
+
+@dataclass
+class GrowConfig:
+    """Every knob of :func:`treeform.methods.learned.grow.grow_tree`."""
+
+    species: str = "oak"
+    """Species preset (acacia, apple, willow, maple, birch, oak, pine) or the path of a species
+    JSON file (see :mod:`treeform.growth.species`)."""
+    seed: int = 0
+    """Random seed: same species + parameters + seed -> byte-identical skeleton.json."""
+    params: dict = field(default_factory=dict)
+    """Overrides of :class:`~treeform.growth.phenomenological.GrowthParameters` fields, e.g.
+    ``{"age": 12}``."""
+    leaves_per_twig: float = 3.0
+    """Leaf clusters per twig node (a node carrying at most ``twig_tips`` tips), when
+    ``leaves`` is None."""
+    leaves: int | None = None
+    """Total number of leaf clusters (alpha-textured cards); None: ``leaves_per_twig`` per twig."""
+    twig_tips: int = 4
+    """A node whose subtree holds at most this many tips is a twig: leaves hang on twigs."""
+    leaf_size: float | None = None
+    """Edge length of a leaf-cluster card in metres; None: the species' size."""
+    lod: str = "medium"
+    """Level of detail: 'low' (20k triangles), 'medium' (100k), 'high' (400k), 'full' (no bound)."""
+    radial_segments: int = 8
+    """Sides of the branch tubes before any LOD reduction."""
+    render_size: int = 512
+    """Edge in pixels of the square front, side and top preview renders."""
+    fov_y: float = 35.0
+    """Vertical field of view of the preview cameras in degrees."""
+    out: str | None = None
+    """Output directory (None: nothing is written)."""
+
+    def validate(self) -> "GrowConfig":
+        if not isinstance(self.species, str) or not self.species:
+            raise InputError(f"species: expected a species name or a path, got {self.species!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
+            raise InputError(f"seed: expected an integer, got {self.seed!r}")
+        self.seed = int(self.seed)
+        if not isinstance(self.params, dict):
+            raise InputError(f"params: expected a mapping of growth parameters, got {type(self.params).__name__}")
+        check_choice(self.lod, "lod", _lod_names())
+        check_positive(self.leaves_per_twig, "leaves_per_twig", allow_zero=True)
+        if self.leaf_size is not None:
+            check_positive(self.leaf_size, "leaf_size")
+        if not 5 <= self.fov_y <= 120:
+            raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
+        for name, lo, hi in (("twig_tips", 1, 10_000), ("radial_segments", 3, 64), ("render_size", 32, 4096)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not lo <= v <= hi:
+                raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+        if self.leaves is not None and (isinstance(self.leaves, bool) or not isinstance(self.leaves, numbers.Integral)
+                                        or not 0 <= self.leaves <= 2_000_000):
+            raise InputError(f"leaves: expected an integer in [0, 2000000] or None, got {self.leaves!r}")
+        return self
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "GrowConfig":
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
+        d = dict(d)
+        if d.get("out") is not None:
+            d["out"] = str(d["out"])
+        if "params" in d and d["params"] is not None:
+            d["params"] = dict(d["params"])
+        return cls(**d).validate()

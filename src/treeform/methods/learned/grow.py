@@ -1,0 +1,332 @@
+"""Species preset -> leafy 3D tree by phenomenological growth (seed 003 §4.3, Appendix Tables 2–3).
+
+Each stage is one call into a domain folder: :func:`treeform.growth.phenomenological.grow`
+(skeleton), :func:`treeform.growth.leaves.attach_leaves` (leaf clusters on the twigs),
+:func:`treeform.geometry.tree_mesh` (bark tubes + leaf cards under a triangle budget),
+:class:`treeform.render.Renderer` (previews) and :mod:`treeform.io` (files, written
+atomically: a staging folder, then renames).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from treeform import __version__
+from treeform._shared.errors import InputError
+from treeform._shared.rng import as_rng
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.io.outputs import check_out_dir, write_json, write_staged
+from treeform.methods.learned.config import GrowConfig
+from treeform.structures import Camera, Foliage, Mesh, TreeSkeleton
+
+if TYPE_CHECKING:  # pragma: no cover
+    from treeform.growth.phenomenological import GrowthParameters
+
+__all__ = ["GrowResult", "OUTPUT_FILES", "STAGES", "frame_camera", "grow_tree", "leaf_positions", "shape_metrics",
+           "preview_lighting", "twig_nodes", "write_staged"]
+
+STAGES = ("grow", "leaves", "mesh", "render", "export")
+"""Stage names reported through ``progress(stage, event, seconds)``, in order."""
+
+OUTPUT_FILES = ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png",
+                "metrics.json", "config.json")
+
+
+@dataclass
+class GrowResult:
+    """Everything :func:`grow_tree` made; ``files`` maps output names to paths (if written).
+
+    ``parameters`` are the growth parameters used (the species' with the overrides applied);
+    ``renders`` holds the front / side / top :class:`~treeform.render.RenderResult`;
+    ``preview`` is the (H, W, 3) uint8 strip of the three renders.
+    """
+
+    skeleton: TreeSkeleton
+    foliage: Foliage
+    mesh: Mesh
+    parameters: "GrowthParameters"
+    config: GrowConfig
+    metrics: dict
+    renders: dict = field(default_factory=dict)
+    preview: np.ndarray | None = None
+    files: dict = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------ helpers
+def shape_metrics(skeleton: TreeSkeleton) -> dict:
+    """Tree-form numbers of a skeleton (metres; Y up).
+
+    Returns
+    -------
+    dict
+        ``height`` (highest node), ``crown_width`` (mean of the 2–98 % extents of the nodes
+        along X and Z), ``crown_base`` (5th percentile of the tips' heights),
+        ``crown_height`` (``height - crown_base``), ``crown_flatness`` (crown height / crown
+        width), ``slenderness`` (height / crown width) and ``tip_direction_y`` (mean Y of the
+        unit directions of the terminal segments: < 0 means twigs point below horizontal).
+
+    Examples
+    --------
+    >>> sk = TreeSkeleton(np.array([[0, 0, 0], [0, 2, 0], [1, 2, 0.], [-1, 2, 0]]), np.array([-1, 0, 1, 1]))
+    >>> m = shape_metrics(sk)
+    >>> m["height"], m["tip_direction_y"]
+    (2.0, 0.0)
+    """
+    p = skeleton.positions
+    tips = skeleton.tips()
+    height = float(p[:, 1].max())
+    ext = [np.percentile(p[:, k], 98) - np.percentile(p[:, k], 2) for k in (0, 2)]
+    width = float(max(np.mean(ext), 1e-6))
+    tip_y = p[tips, 1]
+    base = float(np.percentile(tip_y, 5)) if len(tips) else 0.0
+    d = p[tips] - p[skeleton.parent[tips].clip(0)]
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    return {
+        "height": round(height, 4),
+        "crown_width": round(width, 4),
+        "crown_base": round(base, 4),
+        "crown_height": round(height - base, 4),
+        "crown_flatness": round((height - base) / width, 4),
+        "slenderness": round(height / width, 4),
+        "tip_direction_y": round(float(d[:, 1].mean()) if len(tips) else 0.0, 4),
+    }
+
+
+def twig_nodes(skeleton: TreeSkeleton, twig_tips: int = 4) -> np.ndarray:
+    """Indices of the twig nodes: those carrying at most ``twig_tips`` tips in their subtree (never the root).
+
+    Returns
+    -------
+    ndarray of int64, shape (K,)
+    """
+    tips = np.zeros(skeleton.n_nodes)
+    tips[skeleton.tips()] = 1
+    for i in range(skeleton.n_nodes - 1, 0, -1):
+        tips[skeleton.parent[i]] += tips[i]
+    twigs = np.flatnonzero(tips <= twig_tips)
+    return twigs[twigs > 0]
+
+
+def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: int = 4, seed=None) -> np.ndarray:
+    """``n`` leaf-cluster centres scattered around the twigs (seed 003 Appendix: leaves on twigs).
+
+    Each cluster picks a twig node (evenly: every twig gets ``n // twigs`` or one more), a
+    random point on the internode leading to it, and a normal offset of σ = ``size / 3``.
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    n : int
+    size : float
+        Leaf-cluster card size in metres.
+    twig_tips : int
+    seed : int or numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    rng = as_rng(seed)
+    twigs = twig_nodes(skeleton, twig_tips)
+    if n <= 0 or len(twigs) == 0:
+        return np.zeros((0, 3))
+    reps = np.full(len(twigs), n // len(twigs))
+    reps[rng.permutation(len(twigs))[: n % len(twigs)]] += 1
+    node = np.repeat(twigs, reps)
+    a = skeleton.positions[skeleton.parent[node]]
+    b = skeleton.positions[node]
+    t = rng.uniform(0.0, 1.0, (len(node), 1))
+    pts = a + t * (b - a) + rng.normal(0.0, size / 3.0, (len(node), 3))
+    pts[:, 1] = np.maximum(pts[:, 1], size / 2)
+    return pts
+
+
+def _leaf_colors(foliage: Foliage, base_rgb, center: np.ndarray, radius: float, rng) -> np.ndarray:
+    """Species green with per-leaf brightness / hue variation, darker deep inside the crown."""
+    m = len(foliage)
+    base = np.asarray(base_rgb, np.float32)
+    bright = rng.uniform(0.82, 1.18, (m, 1)).astype(np.float32)
+    hue = rng.normal(0.0, 0.035, (m, 3)).astype(np.float32)
+    hue[:, 1] *= 0.5
+    depth = np.linalg.norm(foliage.positions - center, axis=1) / max(radius, 1e-6)
+    shade = (0.72 + 0.28 * np.clip(depth, 0.0, 1.0)).astype(np.float32)[:, None]
+    return np.clip((base + hue) * bright * shade, 0.0, 1.0)
+
+
+def frame_camera(lo, hi, *, size: int, fov_y: float, margin: float = 1.06) -> Camera:
+    """A front camera (on +Z, looking at -Z) that frames the box ``lo``–``hi``.
+
+    It looks at the box centre from far enough that the box's largest extent fits the view
+    from the front, and — since :func:`treeform.render.view_camera` keeps the distance —
+    from the side and from the top as well.
+
+    Parameters
+    ----------
+    lo, hi : array_like, shape (3,)
+        Box corners in metres.
+    size : int
+        Image width and height in pixels.
+    fov_y : float
+        Field of view in degrees.
+    margin : float
+        Extra room around the box (1 = touching the image border).
+
+    Returns
+    -------
+    Camera
+    """
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    center = 0.5 * (lo + hi)
+    ext = np.maximum(hi - lo, 1e-3)
+    half = 0.5 * margin * float(ext.max())
+    depth = 0.5 * float(max(ext[0], ext[2]))
+    dist = half / math.tan(math.radians(fov_y) / 2) + depth
+    reach = float(np.linalg.norm(ext))
+    return Camera(size, size, fov_y, tuple(center + [0.0, 0.0, dist]), tuple(center), (0.0, 1.0, 0.0),
+                  near=max(dist - reach, 0.01), far=dist + reach)
+
+
+def preview_lighting():
+    """The soft, camera-relative :class:`~treeform.render.Lighting` of the previews."""
+    from treeform.render import Lighting
+
+    # soft, camera-relative light: every view is lit alike and the leaves keep their colour
+    return Lighting(direction=(-0.4, 0.6, 0.7), key=(0.5, 0.5, 0.46), sky=(0.75, 0.77, 0.8),
+                    ground=(0.5, 0.49, 0.45), camera_relative=True)
+
+
+# ------------------------------------------------------------------------------------ pipeline
+def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: ProgressCallback | None = None,
+              config: GrowConfig | None = None, **overrides) -> GrowResult:
+    """Grow a leafy, textured 3D tree of a species (seed 003 §4.3, Appendix Tables 2–3).
+
+    Parameters
+    ----------
+    species : str or path-like
+        A preset (acacia, apple, willow, maple, birch, oak, pine) or a species JSON file.
+    seed : int
+        Same species + options + seed -> byte-identical ``skeleton.json``.
+    out : path, optional
+        Directory to write tree.glb, tree.obj (+ .mtl, textures), skeleton.json,
+        skeleton.ply, preview.png, metrics.json and config.json; files appear only when
+        every stage succeeded.
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` for the stages in :data:`STAGES`.
+    config : GrowConfig, optional
+        Base configuration (``species``, ``seed`` and ``out`` given here win).
+    **overrides
+        :class:`GrowConfig` fields (``leaves=5000, lod="low", leaves_per_twig=2, ...``) or
+        growth parameters (``age=12, growth_rate=2.5, ...``; see
+        :class:`~treeform.growth.phenomenological.GrowthParameters`).
+
+    Returns
+    -------
+    GrowResult
+
+    Raises
+    ------
+    InputError
+        Unknown species (the message lists the known ones), option or parameter.
+    OutputError
+        ``out`` cannot be written.
+    """
+    from treeform.growth.phenomenological import GrowthParameters
+    from treeform.growth.species import load_species, load_species_appearance
+
+    base = config.to_dict() if config is not None else {}
+    cfg_names = {f.name for f in fields(GrowConfig)}
+    par_names = {f.name for f in fields(GrowthParameters)}
+    cfg_over = {k: v for k, v in overrides.items() if k in cfg_names}
+    par_over = {k: v for k, v in overrides.items() if k in par_names and k not in cfg_names}
+    unknown = sorted(set(overrides) - cfg_names - par_names)
+    if unknown:
+        raise InputError(f"unknown option(s) {', '.join(unknown)}; options: {', '.join(sorted(cfg_names))}; "
+                         f"growth parameters: {', '.join(sorted(par_names))}")
+    params_over = {**base.get("params", {}), **par_over}
+    cfg = GrowConfig.from_dict({**base, **cfg_over, "species": str(species), "seed": seed, "params": params_over,
+                                "out": None if out is None else str(out)})
+    out_dir = check_out_dir(cfg.out) if cfg.out is not None else None
+    params = GrowthParameters.from_dict(cfg.params, base=load_species(cfg.species))
+    look = load_species_appearance(cfg.species)
+    timer = StageTimer(progress)
+    rng = as_rng(cfg.seed)
+
+    with timer.stage("grow"):
+        from treeform.growth.phenomenological import grow
+
+        skeleton = grow(params, seed=cfg.seed)
+        skeleton.meta["species"] = Path(cfg.species).stem
+    with timer.stage("leaves"):
+        from treeform.growth.leaves import attach_leaves
+
+        size = cfg.leaf_size or look.leaf_size
+        n_twigs = len(twig_nodes(skeleton, cfg.twig_tips))
+        n_leaves = cfg.leaves if cfg.leaves is not None else int(round(cfg.leaves_per_twig * n_twigs))
+        pts = leaf_positions(skeleton, n_leaves, size=size, twig_tips=cfg.twig_tips, seed=rng)
+        if len(pts):
+            lo, hi = pts.min(0), pts.max(0)
+            center = 0.5 * (lo + hi)
+            foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=cfg.twig_tips, seed=rng)
+            radius = 0.5 * float(np.linalg.norm(hi - lo))
+            foliage = Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size,
+                              _leaf_colors(foliage, look.leaf_color, center, radius, rng), foliage.node)
+        else:
+            foliage = Foliage.empty()
+    with timer.stage("mesh"):
+        from treeform.geometry import LOD_PRESETS, leaf_texture, tree_mesh
+
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
+                         leaf_texture=leaf_texture(seed=cfg.seed), seed=cfg.seed)
+    with timer.stage("render"):
+        from treeform.render import render_views, to_uint8_rgb
+        from treeform.report import compose_strip
+
+        pts_all = np.concatenate([skeleton.positions, foliage.positions]) if len(foliage) else skeleton.positions
+        pad = (size if len(foliage) else 0.0) + float(skeleton.radius.max())
+        cam = frame_camera(pts_all.min(0) - pad, pts_all.max(0) + pad, size=cfg.render_size, fov_y=cfg.fov_y)
+        renders = render_views(mesh, cam, views=("front", "side", "top"), lighting=preview_lighting())
+        preview = compose_strip([to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+    metrics = {
+        "species": skeleton.meta["species"],
+        "seed": cfg.seed,
+        "nodes": skeleton.n_nodes,
+        "branches": skeleton.n_nodes,
+        "tips": int(len(skeleton.tips())),
+        "leaves": len(foliage),
+        "vertices": mesh.n_vertices,
+        "triangles": mesh.n_triangles,
+        **shape_metrics(skeleton),
+    }
+    result = GrowResult(skeleton, foliage, mesh, params, cfg, metrics, renders, preview)
+    if out_dir is not None:
+        with timer.stage("export"):
+            result.files = _write_outputs(result, out_dir)
+    metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
+    metrics["total_seconds"] = round(sum(timer.timings.values()), 4)
+    if out_dir is not None:
+        write_json(out_dir / "metrics.json", metrics)
+    return result
+
+
+def _write_outputs(res: GrowResult, out_dir: Path) -> dict:
+    """Write every output of a grow run into ``out_dir`` atomically (see :func:`write_staged`)."""
+    from treeform.io import write_glb, write_obj, write_png, write_skeleton_ply
+
+    config = {"treeform": __version__, "method": "learned.grow", "config": res.config.to_dict(),
+              "parameters": res.parameters.to_dict()}
+    return write_staged(out_dir, [
+        lambda d: write_glb(res.mesh, d / "tree.glb"),
+        lambda d: write_obj(res.mesh, d / "tree.obj"),
+        lambda d: res.skeleton.save(d / "skeleton.json"),
+        lambda d: write_skeleton_ply(res.skeleton, d / "skeleton.ply"),
+        lambda d: write_png(res.preview, d / "preview.png"),
+        lambda d: write_json(d / "config.json", config),
+        lambda d: write_json(d / "metrics.json", res.metrics),
+    ])
+
+

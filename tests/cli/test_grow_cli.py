@@ -1,0 +1,60 @@
+"""`treeform grow`: writes its files; bad input fails with one `error:` line, no traceback, no files."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+EXE = Path(sys.executable).parent / "treeform"
+
+
+def cli(*args, timeout=240):
+    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-m", "treeform.cli.app"]
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "COLUMNS": "120"})
+
+
+def assert_clean_failure(proc, out: Path):
+    assert proc.returncode != 0, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    lines = [l for l in proc.stderr.splitlines() if l.startswith("error:")]
+    assert len(lines) == 1, proc.stderr
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_help_lists_grow():
+    proc = cli("--help")
+    assert proc.returncode == 0 and "grow" in proc.stdout
+    proc = cli("grow", "--help")
+    assert proc.returncode == 0 and "--species" in proc.stdout and "--leaves" in proc.stdout
+
+
+def test_grow_writes_its_files(tmp_path):
+    out = tmp_path / "pine"
+    proc = cli("grow", "--species", "pine", "--seed", "3", "--out", out, "--lod", "low", "--leaves", "2000")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png", "metrics.json",
+                 "config.json"):
+        assert (out / name).is_file(), name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["species"] == "pine" and metrics["leaves"] == 2000 and metrics["triangles"] <= 20000
+    cfg = json.loads((out / "config.json").read_text())["config"]
+    assert cfg["seed"] == 3 and cfg["lod"] == "low"
+    assert "pine" in proc.stdout and "branches" in proc.stdout
+
+
+def test_unknown_species_fails_cleanly(tmp_path):
+    out = tmp_path / "x"
+    proc = cli("grow", "--species", "baobab", "--out", out)
+    assert_clean_failure(proc, out)
+    assert "baobab" in proc.stderr and "oak" in proc.stderr
+
+
+def test_bad_species_file_and_unwritable_out_fail_cleanly(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"parameters": {"age": 3}, "colour": 1}')
+    out = tmp_path / "y"
+    assert_clean_failure(cli("grow", "--species", bad, "--out", out), out)
+    out = tmp_path / "no" / "such" / "dir"
+    assert_clean_failure(cli("grow", "--species", "oak", "--out", out), out)

@@ -1,0 +1,128 @@
+"""End-to-end tests of the grow pipeline (species preset -> leafy 3D tree, seed 003 §4.3)."""
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError, OutputError
+from treeform.io import read_glb_counts
+from treeform.methods.learned import GrowConfig
+from treeform.methods.learned.grow import OUTPUT_FILES, STAGES, grow_tree, leaf_positions, shape_metrics
+from treeform.structures import TreeSkeleton
+
+FAST = dict(lod="low", render_size=128, age=6)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("grow") / "oak"
+    events = []
+    res = grow_tree("oak", seed=3, out=out, progress=lambda s, e, t: events.append((s, e)), **FAST)
+    return res, out, events
+
+
+def test_outputs_exist_and_agree(run):
+    res, out, events = run
+    names = {p.name for p in out.iterdir()}
+    assert set(OUTPUT_FILES) <= names
+    assert not any(n.startswith(".treeform-") for n in names)
+    assert not any(p.name.startswith(".treeform-") for p in out.parent.iterdir())
+    assert read_glb_counts(out / "tree.glb") == (res.mesh.n_vertices, res.mesh.n_triangles)
+    sk = TreeSkeleton.load(out / "skeleton.json")
+    np.testing.assert_allclose(sk.positions, res.skeleton.positions, atol=1e-6)
+    metrics = json.loads((out / "metrics.json").read_text())
+    for key in ("nodes", "tips", "leaves", "triangles", "height", "crown_width"):
+        assert key in metrics
+    assert metrics["nodes"] == res.skeleton.n_nodes and metrics["leaves"] == len(res.foliage)
+    assert set(metrics["timings"]) == set(STAGES)
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["method"] == "learned.grow" and cfg["config"]["species"] == "oak" and cfg["config"]["seed"] == 3
+    assert cfg["config"]["params"] == {"age": 6} and cfg["parameters"]["age"] == 6
+    assert [s for s, e in events if e == "end"] == list(STAGES)
+
+
+def test_leaves_sit_on_twigs_in_species_green(run):
+    res, _, _ = run
+    f = res.foliage
+    assert len(f) > 100
+    assert np.all(f.node > 0)
+    # hung near their twig node
+    d = np.linalg.norm(f.positions - res.skeleton.positions[f.node], axis=1)
+    assert np.median(d) < 2.0
+    # green, with per-leaf variation
+    assert np.all(f.color[:, 1] > f.color[:, 0]) and np.all(f.color[:, 1] > f.color[:, 2])
+    assert f.color.std(axis=0).min() > 0.005
+
+
+def test_preview_frames_the_tree(run):
+    res, _, _ = run
+    assert res.preview.ndim == 3 and res.preview.shape[2] == 3
+    for view in ("front", "side", "top"):
+        m = res.renders[view].mask
+        assert m.mean() > 0.02, view
+        # the whole tree is in the picture: nothing touches the border
+        assert not (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()), view
+
+
+def test_same_seed_same_skeleton_json(tmp_path):
+    a = grow_tree("pine", seed=1, out=tmp_path / "a", **FAST)
+    b = grow_tree("pine", seed=1, out=tmp_path / "b", **FAST)
+    c = grow_tree("pine", seed=2, **FAST)
+    assert (tmp_path / "a" / "skeleton.json").read_bytes() == (tmp_path / "b" / "skeleton.json").read_bytes()
+    assert np.array_equal(a.foliage.positions, b.foliage.positions)
+    assert a.skeleton.n_nodes != c.skeleton.n_nodes or not np.allclose(a.skeleton.positions, c.skeleton.positions)
+
+
+def test_leaf_count_options():
+    res = grow_tree("apple", seed=0, leaves=500, **FAST)
+    assert len(res.foliage) == 500
+    res = grow_tree("apple", seed=0, leaves=0, **FAST)
+    assert len(res.foliage) == 0 and res.mesh.n_triangles > 0
+
+
+def test_overrides_and_config():
+    res = grow_tree("birch", seed=0, config=GrowConfig(leaves_per_twig=1.0), growth_rate=2.0, **FAST)
+    assert res.parameters.growth_rate == 2.0 and res.parameters.age == 6
+    assert res.config.leaves_per_twig == 1.0 and res.config.species == "birch"
+
+
+def test_bad_inputs():
+    with pytest.raises(InputError, match="known: acacia"):
+        grow_tree("baobab")
+    with pytest.raises(InputError, match="unknown option"):
+        grow_tree("oak", colour="red")
+    with pytest.raises(InputError, match="lod"):
+        grow_tree("oak", lod="ultra")
+    with pytest.raises(InputError, match="leaves"):
+        grow_tree("oak", leaves=-1)
+
+
+def test_unwritable_out_is_one_line_output_error(tmp_path):
+    with pytest.raises(OutputError) as err:
+        grow_tree("oak", out=tmp_path / "missing" / "deeper", **FAST)
+    assert "\n" not in str(err.value)
+    f = tmp_path / "file"
+    f.write_text("x")
+    with pytest.raises(OutputError):
+        grow_tree("oak", out=f, **FAST)
+    if os.geteuid() != 0:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o500)
+        try:
+            with pytest.raises(OutputError):
+                grow_tree("oak", out=ro / "tree", **FAST)
+        finally:
+            ro.chmod(0o700)
+
+
+def test_helpers():
+    sk = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0], [0.5, 1.5, 0], [-0.5, 1.5, 0.]]), np.array([-1, 0, 1, 1]))
+    pts = leaf_positions(sk, 10, size=0.2, seed=0)
+    assert pts.shape == (10, 3) and np.all(pts[:, 1] >= 0.1)
+    assert leaf_positions(sk, 0, size=0.2).shape == (0, 3)
+    m = shape_metrics(sk)
+    assert m["height"] == 1.5 and m["tip_direction_y"] == pytest.approx(np.sqrt(0.5), abs=1e-3)
