@@ -34,6 +34,26 @@ def check_out_dir(out) -> Path:
     return out
 
 
+def check_out_file(path, what: str = "-o", *, suffix: str | None = ".png") -> Path:
+    """Fail early, with one line, if ``path`` cannot be written as an output file.
+
+    Raises :class:`OutputError` for a directory or a missing/unwritable parent, and
+    :class:`InputError` for a wrong file extension (``suffix``; None accepts any).
+    """
+    from treeform._shared.errors import InputError
+
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{what} {path}: is a directory")
+    if not path.parent.exists():
+        raise OutputError(f"{what} {path}: directory {path.parent} does not exist")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{what} {path}: directory is not writable")
+    if suffix is not None and path.suffix.lower() != suffix:
+        raise InputError(f"{what} {path}: expected a {suffix} file name")
+    return path
+
+
 def write_json(path, data) -> Path:
     """Write indented, key-sorted JSON atomically (temporary name, then rename)."""
     path = Path(path)

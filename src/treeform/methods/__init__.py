@@ -16,4 +16,10 @@ METHODS = {
         "Li et al., Learning to reconstruct botanical trees from single images, ACM TOG 40(6) (2021)",
         "treeform.methods.learned.grow:grow_tree",
     ),
+    "variations": (
+        "New RGBA tree images from a library of RGBA trees (contour synthesis + mean value coordinates); "
+        "photo -> RGBA billboard by alpha matting",
+        "Argudo et al., Image-based tree variations, Computer Graphics Forum 39(1) (2020)",
+        "treeform.methods.variations.pipeline:vary",
+    ),
 }

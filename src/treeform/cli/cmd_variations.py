@@ -1,0 +1,77 @@
+"""``treeform library process``, ``vary``, ``morph``, ``billboard``: image-based tree variations (seed 000)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from treeform.cli.app import app, run_api
+
+library_app = typer.Typer(no_args_is_help=True, help="Libraries of RGBA tree images (exemplars for `treeform vary`).")
+app.add_typer(library_app, name="library")
+
+_CACHE = typer.Option(None, "--cache", help="Exemplar cache directory (default: $TREEFORM_CACHE_DIR or ~/.cache).")
+
+
+@library_app.command("process")
+def library_process(
+    directory: Path = typer.Argument(..., help="Directory of RGBA tree images (.png, .webp, .tif)."),
+    cache: Optional[Path] = _CACHE,
+    sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write a contact sheet of the exemplars (PNG)."),
+):
+    """Process every tree of a library once: normalise, segment crown/trunk, contours (cached)."""
+    from treeform.methods.variations.pipeline import LIBRARY_STAGES, process_library
+
+    lib = run_api(process_library, directory, cache_dir=cache, sheet=sheet, stages=LIBRARY_STAGES)
+    trunks = sum(e.has_trunk for e in lib.exemplars)
+    typer.echo(f"{len(lib)} exemplars ({trunks} with a trunk, {lib.from_cache} from the cache) in {lib.cache_dir}")
+
+
+@app.command("vary")
+def vary_cmd(
+    library: Path = typer.Argument(..., help="Directory of RGBA tree images."),
+    n: int = typer.Option(20, "-n", help="Number of variations."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output directory (PNGs, contact_sheet.png, config.json)."),
+    from_tree: Optional[Path] = typer.Option(None, "--from", help="Make variations of this RGBA tree."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    season: Optional[Path] = typer.Option(None, "--season", help="Reference image for histogram transfer."),
+    cache: Optional[Path] = _CACHE,
+):
+    """New trees from random convex combinations of the library's trees (seed 000 §5)."""
+    from treeform.methods.variations.pipeline import vary, vary_stages
+
+    res = run_api(vary, library, n=n, out=out, from_tree=from_tree, season=season, cache_dir=cache, seed=seed,
+                  stages=vary_stages(n))
+    typer.echo(f"{len(res.images)} variations and contact_sheet.png in {out}")
+
+
+@app.command("morph")
+def morph_cmd(
+    a: Path = typer.Argument(..., help="First RGBA tree."),
+    b: Path = typer.Argument(..., help="Second RGBA tree."),
+    steps: int = typer.Option(7, "--steps", help="Number of frames, t = 0 .. 1."),
+    out: Path = typer.Option(..., "--out", "-o", help="Strip of frames (PNG)."),
+    cache: Optional[Path] = _CACHE,
+):
+    """Morph one tree into another through convex combinations (seed 000 §5.1, Fig. 7)."""
+    from treeform.methods.variations.pipeline import MORPH_STAGES, morph
+
+    run_api(morph, a, b, steps=steps, out=out, cache_dir=cache, stages=MORPH_STAGES)
+    typer.echo(f"{steps} frames in {out}")
+
+
+@app.command("billboard")
+def billboard_cmd(
+    photo: Path = typer.Argument(..., help="Photo of a tree (JPEG, PNG, ...)."),
+    out: Path = typer.Option(..., "--out", "-o", help="RGBA billboard (PNG)."),
+    sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write photo | trimap | billboard (PNG)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    sky_gaps: bool = typer.Option(True, "--sky-gaps/--no-sky-gaps", help="Make sky seen through the crown transparent."),
+):
+    """Photo -> RGBA billboard by segmentation, trimap and alpha matting (seed 000 §4.3)."""
+    from treeform.methods.variations.pipeline import BILLBOARD_STAGES, billboard
+
+    res = run_api(billboard, photo, out=out, sheet=sheet, seed=seed, sky_gaps=sky_gaps, stages=BILLBOARD_STAGES)
+    typer.echo(f"{out}: {res.rgba.shape[1]}x{res.rgba.shape[0]} RGBA, IoU with the segmentation {res.metrics['iou']:.3f}")

@@ -1,0 +1,35 @@
+"""Contours of tree masks (seed 000 §4.2–4.6, §5.1–5.2).
+
+Border following (:func:`find_contours`, :func:`longest_exterior_contour`), pin points
+B / L / R (:func:`pin_points`), chord-length resampling to a fixed length
+(:func:`resample_contour`), region fill robust to self-intersections
+(:func:`fill_contour`), the simplified contour Cs (:func:`simplify_contour`) and mean
+value coordinates (:func:`mean_value_coordinates`, :func:`mvc_map`).
+
+Coordinates are pixels ``(x, y)`` = (column, row), ``y`` down.
+"""
+
+from treeform.contour.borders import contour_length, find_contours, longest_exterior_contour, orient_contour, signed_area
+from treeform.contour.fill import fill_contour, simplify_contour
+from treeform.contour.mvc import mean_value_coordinates, mvc_map
+from treeform.contour.pins import PinPoints, crown_baseline, pin_points
+from treeform.contour.resample import DEFAULT_COUNTS, resample_contour, resample_polyline, segment_counts
+
+__all__ = [
+    "DEFAULT_COUNTS",
+    "PinPoints",
+    "contour_length",
+    "crown_baseline",
+    "fill_contour",
+    "find_contours",
+    "longest_exterior_contour",
+    "mean_value_coordinates",
+    "mvc_map",
+    "orient_contour",
+    "pin_points",
+    "resample_contour",
+    "resample_polyline",
+    "segment_counts",
+    "signed_area",
+    "simplify_contour",
+]

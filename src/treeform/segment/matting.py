@@ -1,0 +1,257 @@
+"""Trimaps from a segmentation and alpha matting: photo -> RGBA billboard (seed 000 §4.3, Fig. 4).
+
+The paper derives the trimap from its DeepLabv3+ segmentation: the unknown (grey) band is
+a dilation of the segmentation, the foreground (white) the eroded trunk plus random points
+sampled inside the eroded crown, the rest background; then it runs a matting network. Here
+the segmentation is :func:`treeform.segment.segment_tree` and the matting is closed-form
+matting (Levin, Lischinski & Weiss 2008) from PyMatting, with PyMatting's multilevel
+foreground estimation (Germer et al. 2021) so that edge pixels carry the tree's colour, not
+the sky's.
+
+PyMatting (and numba, which compiles its kernels on first use, about 50 s once, then
+cached) is imported only inside :func:`alpha_matting` and :func:`estimate_foreground`.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform._shared.rng import as_rng
+from treeform.structures.segmentation import Segmentation
+
+__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps"]
+
+UNKNOWN = 0.5
+
+
+def _disc(r: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def _check_image(image) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
+    if min(img.shape[:2]) < 8:
+        raise InputError(f"image: expected at least 8 x 8 pixels, got {img.shape[1]} x {img.shape[0]}")
+    return img
+
+
+def _check_seg(segmentation, shape) -> Segmentation:
+    if not isinstance(segmentation, Segmentation):
+        raise InputError(f"segmentation: expected a Segmentation, got {type(segmentation).__name__}")
+    if segmentation.shape != tuple(shape):
+        raise InputError(f"segmentation: size {segmentation.shape[::-1]} does not match the image's {tuple(shape)[::-1]}")
+    if not segmentation.tree_mask.any():
+        raise InputError("segmentation: the tree mask is empty")
+    return segmentation
+
+
+def sky_gaps(image, segmentation, *, ratio: float = 10.0) -> np.ndarray:
+    """Tree pixels that show the sky through gaps in the foliage.
+
+    A gap pixel is inside the segmented tree, not wood, and either clearly blue and
+    bright (when the sky around the crown is blue), or coloured like the background
+    above the tree: its colour bin (Lab, 8 x 16 x 16) is ``ratio`` times more frequent
+    in that background than in the tree, and it is bright.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    segmentation : Segmentation
+    ratio : float
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+    """
+    img = _check_image(image)
+    seg = _check_seg(segmentation, img.shape[:2])
+    tree = seg.tree_mask
+    h, w = tree.shape
+    lab = cv2.cvtColor(img, cv2.COLOR_RGB2Lab)
+    L = lab[..., 0].astype(np.int32)
+    b = lab[..., 2].astype(np.int32) - 128
+    q = ((L >> 5) * 16 + (lab[..., 1].astype(np.int32) >> 4)) * 16 + (lab[..., 2].astype(np.int32) >> 4)
+    r = max(1, int(round(0.01 * max(h, w))))
+    inner = cv2.erode(tree.astype(np.uint8), _disc(r)).astype(bool) & ~seg.wood_mask
+    bg = cv2.erode((~tree).astype(np.uint8), _disc(r)).astype(bool)
+    rows = np.nonzero(tree.any(1))[0]
+    bg &= np.arange(h)[:, None] < (rows.min() + 0.6 * (rows.max() - rows.min() + 1))  # sky, not ground
+    if bg.sum() < 50 or inner.sum() < 50:
+        return np.zeros_like(tree)
+    nb = 8 * 16 * 16
+    hb = (np.bincount(q[bg], minlength=nb) + 0.5) / (bg.sum() + 0.5 * nb)
+    hf = (np.bincount(q[inner], minlength=nb) + 0.5) / (inner.sum() + 0.5 * nb)
+    gap = ((hb / hf)[q] > ratio) & (L > 120)
+    if np.median(b[bg]) < -4:  # a blue sky: its gaps are blue
+        gap |= (b < -6) & (L > 90)
+    return gap & tree & ~seg.wood_mask
+
+
+def make_trimap(image, segmentation, *, band: int | None = None, erode: int | None = None,
+                point_spacing: float = 1.0, gaps: bool = True, seed=None) -> np.ndarray:
+    """A trimap from an automatic segmentation (seed 000 §4.3, Fig. 4).
+
+    * unknown (0.5): the segmentation dilated by ``band`` pixels (the tree and a band
+      around it);
+    * foreground (1): the trunk (wood) eroded by ``erode`` pixels, plus random points
+      sampled inside the crown eroded by ``band`` pixels where the segmentation is
+      confident (soft alpha >= 0.9) and away from sky gaps, about one per
+      ``point_spacing``^2 pixels. The paper samples sparse points; on our photos sparse
+      points left a faint haze of partial alpha over the background around the crown,
+      so the default (1) takes every such pixel;
+    * background (0): the rest, plus (``gaps``) the sky seen through gaps in the crown
+      (:func:`sky_gaps`), eroded by one pixel, so that the matte can be see-through there.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    segmentation : Segmentation
+    band : int, optional
+        Half width of the unknown band (default 1.5 % of the long side, at least 2 px).
+    erode : int, optional
+        Erosion of the trunk (default a third of ``band``, at least 1 px).
+    point_spacing : float
+        Mean spacing in pixels of the crown's foreground points (1 = all of them).
+    gaps : bool
+        Mark sky-coloured gaps inside the crown as background.
+    seed : int or Generator, optional
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+        0 background, 0.5 unknown, 1 foreground.
+    """
+    img = _check_image(image)
+    seg = _check_seg(segmentation, img.shape[:2])
+    if not point_spacing >= 1:
+        raise InputError(f"point_spacing: expected a number >= 1, got {point_spacing!r}")
+    rng = as_rng(seed)
+    tree = seg.tree_mask
+    h, w = tree.shape
+    band = max(2, int(round(0.015 * max(h, w)))) if band is None else int(band)
+    erode = max(1, band // 3) if erode is None else int(erode)
+    if band < 1 or erode < 0:
+        raise InputError(f"band, erode: expected band >= 1 and erode >= 0, got {band}, {erode}")
+    tri = np.zeros((h, w), np.float64)
+    tri[cv2.dilate(tree.astype(np.uint8), _disc(band)).astype(bool)] = UNKNOWN
+    wood = seg.wood_mask
+    crown = tree & ~wood
+    fg = cv2.erode(wood.astype(np.uint8), _disc(erode)).astype(bool) if erode else wood.copy()
+    inner = cv2.erode(crown.astype(np.uint8), _disc(band)).astype(bool) & (seg.alpha >= 0.9)
+    if gaps:
+        gap = sky_gaps(img, seg)
+        inner &= ~cv2.dilate(gap.astype(np.uint8), _disc(1)).astype(bool)
+        cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        tri[cv2.erode(gap.astype(np.uint8), cross).astype(bool)] = 0.0
+    if point_spacing <= 1:
+        fg |= inner
+    else:
+        ys, xs = np.nonzero(inner)
+        n = min(len(ys), int(round(len(ys) / point_spacing ** 2)))
+        if n:
+            pick = rng.choice(len(ys), size=n, replace=False)
+            fg[ys[pick], xs[pick]] = True
+    tri[fg] = 1.0
+    return tri
+
+
+def alpha_matting(image, trimap, *, max_side: int = 800) -> np.ndarray:
+    """Closed-form alpha matting (PyMatting's ``estimate_alpha_cf``).
+
+    Images larger than ``max_side`` are matted at a reduced size; the alpha is then
+    upsampled bilinearly and the trimap's known pixels restored.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    trimap : ndarray, shape (H, W), float
+        0 background, 1 foreground, anything between unknown.
+    max_side : int
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32 in [0, 1]
+    """
+    img = _check_image(image)
+    tri = np.asarray(trimap, np.float64)
+    if tri.shape != img.shape[:2]:
+        raise InputError(f"trimap: shape {tri.shape} does not match the image's {img.shape[:2]}")
+    if not np.all(np.isfinite(tri)) or tri.min() < 0 or tri.max() > 1:
+        raise InputError("trimap: values must lie in [0, 1]")
+    if not (tri == 1).any() or not (tri == 0).any():
+        raise InputError("trimap: needs both foreground (1) and background (0) pixels")
+    if isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 16:
+        raise InputError(f"max_side: expected an integer >= 16, got {max_side!r}")
+    from pymatting import estimate_alpha_cf
+
+    h, w = tri.shape
+    s = min(1.0, max_side / max(h, w))
+    if s < 1.0:
+        size = (max(8, round(w * s)), max(8, round(h * s)))
+        im_s = cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+        tr_s = cv2.resize(tri, size, interpolation=cv2.INTER_NEAREST)
+    else:
+        im_s, tr_s = img, tri
+    alpha = estimate_alpha_cf(im_s.astype(np.float64) / 255.0, tr_s,
+                              cg_kwargs={"maxiter": 2000})
+    # solver noise: a faint haze of alpha ~ 0.01 over the background, or holes of 0.99
+    alpha = np.clip(alpha, 0.0, 1.0)
+    alpha[alpha < 0.02] = 0.0
+    alpha[alpha > 0.98] = 1.0
+    if s < 1.0:
+        alpha = cv2.resize(alpha, (w, h), interpolation=cv2.INTER_LINEAR)
+        alpha[tri == 0] = 0.0
+        alpha[tri == 1] = 1.0
+    return alpha.astype(np.float32)
+
+
+def estimate_foreground(image, alpha) -> np.ndarray:
+    """Foreground colours F of a matte (PyMatting's multilevel ``estimate_foreground_ml``).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32 in [0, 1]
+    """
+    img = _check_image(image)
+    a = np.asarray(alpha, np.float64)
+    if a.shape != img.shape[:2]:
+        raise InputError(f"alpha: shape {a.shape} does not match the image's {img.shape[:2]}")
+    from pymatting import estimate_foreground_ml
+
+    fg = estimate_foreground_ml(img.astype(np.float64) / 255.0, np.clip(a, 0.0, 1.0))
+    return np.clip(fg, 0.0, 1.0).astype(np.float32)
+
+
+def matte_tree(image, segmentation, *, max_side: int = 800, gaps: bool = True, seed=None) -> tuple:
+    """Photo + segmentation -> RGBA billboard (seed 000 §4.3, Fig. 4).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    segmentation : Segmentation
+        E.g. from :func:`treeform.segment.segment_tree`.
+    max_side : int
+        Long side at which the matting runs (the alpha is upsampled).
+    gaps : bool
+        See :func:`make_trimap`.
+    seed : int or Generator, optional
+
+    Returns
+    -------
+    rgba : ndarray, shape (H, W, 4), uint8
+        Foreground colour and alpha; (0, 0, 0, 0) where alpha is 0.
+    trimap : ndarray, shape (H, W), float64
+    """
+    img = _check_image(image)
+    tri = make_trimap(img, segmentation, gaps=gaps, seed=seed)
+    alpha = alpha_matting(img, tri, max_side=max_side)
+    fg = estimate_foreground(img, alpha)
+    rgba = np.empty(img.shape[:2] + (4,), np.uint8)
+    rgba[..., :3] = np.clip(np.rint(fg * 255), 0, 255)
+    rgba[..., 3] = np.clip(np.rint(alpha * 255), 0, 255)
+    rgba[rgba[..., 3] == 0] = 0
+    return rgba, tri

@@ -1,0 +1,90 @@
+"""Trimap from a segmentation and alpha matting (seed 000 §4.3, Fig. 4) on a small image.
+
+The first PyMatting call compiles its numba kernels (~50 s once, then cached); the
+image here is 128 px so the matting itself takes well under a second.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError
+from treeform.segment.matting import alpha_matting, estimate_foreground, make_trimap, matte_tree, sky_gaps
+from treeform.structures import Segmentation
+
+pytest.importorskip("pymatting")
+
+
+def _scene(n=128, seed=0):
+    """Blue sky, a textured green crown with soft edges and a sky gap, a brown trunk."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:n, :n]
+    r = np.hypot(xx - n / 2, yy - 0.4 * n)
+    alpha = np.clip((0.3 * n - r) / 2.0 + 0.5, 0, 1)  # soft crown edge, 2 px
+    trunk = (np.abs(xx - n / 2) < 0.04 * n) & (yy > 0.5 * n) & (yy < 0.95 * n)
+    alpha = np.maximum(alpha, trunk.astype(float))
+    gap = np.hypot(xx - 0.58 * n, yy - 0.33 * n) < 0.06 * n
+    alpha[gap] = 0.0
+    sky = np.stack([np.full((n, n), 90.0), np.full((n, n), 150.0), np.full((n, n), 235.0)], -1)
+    leaves = np.stack([40 + 40 * rng.random((n, n)), 110 + 60 * rng.random((n, n)), 30 + 20 * rng.random((n, n))], -1)
+    leaves[trunk] = (110, 75, 45)
+    img = (alpha[..., None] * leaves + (1 - alpha[..., None]) * sky).astype(np.uint8)
+    labels = np.zeros((n, n), np.uint8)
+    labels[(np.hypot(xx - n / 2, yy - 0.4 * n) < 0.3 * n)] = 1  # the segmentation does not know the gap
+    labels[trunk] = 2
+    return img, Segmentation(labels), alpha
+
+
+def test_trimap_layout():
+    img, seg, _ = _scene()
+    tri = make_trimap(img, seg, seed=0)
+    assert set(np.unique(tri)) <= {0.0, 0.5, 1.0}
+    assert (tri[~seg.tree_mask] <= 0.5).all()  # outside the tree: unknown band or background
+    assert tri[0, 0] == 0.0 and (tri[seg.wood_mask] >= 0.5).all() and (tri == 1).sum() > 50
+    # sparse foreground points (the paper's): most of the crown stays unknown
+    crown = seg.foliage_mask
+    sparse = make_trimap(img, seg, point_spacing=6.0, seed=0)
+    assert 0.01 < (sparse[crown] == 1).mean() < 0.2
+    assert (tri[crown] == 1).mean() > 0.3
+    assert np.array_equal(tri, make_trimap(img, seg, seed=0))
+    assert sky_gaps(img, seg)[40:47, 70:78].any()  # the sky seen through the crown
+
+
+def test_matting_recovers_the_soft_mask_and_clean_colours():
+    img, seg, truth = _scene()
+    rgba, tri = matte_tree(img, seg, seed=0)
+    a = rgba[..., 3] / 255.0
+    m, t = a > 0.5, truth > 0.5
+    assert (m & t).sum() / (m | t).sum() > 0.9
+    assert a[int(0.33 * 128), int(0.58 * 128)] < 0.5  # the gap is see-through
+    fg = estimate_foreground(img, a)
+    edge = (a > 0.2) & (a < 0.8)
+    assert fg[edge][:, 2].mean() < img[edge][:, 2].mean()  # sky blue removed from edge colours
+
+
+def test_reduced_resolution_and_bad_inputs():
+    img, seg, _ = _scene()
+    tri = make_trimap(img, seg, seed=0)
+    a = alpha_matting(img, tri, max_side=64)
+    assert a.shape == (128, 128) and a.dtype == np.float32 and 0 <= a.min() and a.max() <= 1
+    assert (a[tri == 1] == 1).all() and (a[tri == 0] == 0).all()
+    with pytest.raises(InputError):
+        alpha_matting(img, np.full((128, 128), 0.5))
+    with pytest.raises(InputError):
+        make_trimap(img, Segmentation(np.zeros((128, 128), np.uint8)))
+    with pytest.raises(InputError):
+        make_trimap(img[:64], seg)
+
+
+def test_billboard_from_a_real_photo(tmp_path):
+    from treeform.methods.variations import billboard
+
+    sample = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    res = billboard(sample, out=tmp_path / "tree.png", sheet=tmp_path / "sheet.png", photo_max_size=128)
+    assert res.metrics["iou"] > 0.8
+    from PIL import Image
+
+    with Image.open(tmp_path / "tree.png") as im:
+        assert im.mode == "RGBA"
+    assert (tmp_path / "sheet.png").is_file()
