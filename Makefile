@@ -30,6 +30,8 @@ test: $(STAMP) sysdeps validator
 
 bench: $(STAMP) sysdeps
 	$(PY) benchmarks/run.py
+	$(PY) benchmarks/bench_growth.py
+	$(PY) benchmarks/bench_variations.py
 
 clean:
 	rm -rf out .pytest_cache
