@@ -44,6 +44,7 @@ def bench_species(repeat: int, seeds: int):
     from treeform.growth.species import SPECIES, load_species
     from treeform.methods.learned import GrowConfig
     from treeform.methods.learned.grow import shape_metrics, twig_nodes
+    from treeform.metrics import tree_metrics
 
     cfg = GrowConfig()
     grow(load_species("oak"), seed=0)  # warm-up (imports)
@@ -60,7 +61,10 @@ def bench_species(repeat: int, seeds: int):
         rows = []
         for s in range(seeds):
             sk = grow(p, seed=s)
-            rows.append({**shape_metrics(sk), "nodes": sk.n_nodes})
+            tf = tree_metrics(sk)
+            rows.append({**shape_metrics(sk), "nodes": sk.n_nodes,
+                         "branching_angle": tf["branching_angle_deg"], "trunk_diameter": tf["trunk_diameter_m"],
+                         "biomass": tf["biomass_m3"]})
         shapes[sp] = {k: np.array([r[k] for r in rows], float) for k in rows[0]}
     return timing, shapes
 
@@ -115,6 +119,8 @@ def main():
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--seeds", type=int, default=30)
     ap.add_argument("--picture", type=Path, default=None, help="also write the species picture here")
+    ap.add_argument("--metrics-plot", type=Path, default=None,
+                    help="also write box plots of the per-species metric distributions here (docs/images/metrics.png)")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT / "src"))
     timing, shapes = bench_species(args.repeat, args.seeds)
@@ -144,6 +150,19 @@ def main():
     if args.picture is not None:
         species_picture(args.picture)
         print(f"\nwrote {args.picture}")
+    if args.metrics_plot is not None:
+        from PIL import Image
+
+        from treeform.report.plots import box_plots
+
+        titles = {"height": "height (m)", "slenderness": "height / crown width", "crown_flatness":
+                  "crown height / crown width", "tip_direction_y": "twig-tip direction y (<0: drooping)",
+                  "branching_angle": "branching angle (deg)", "trunk_diameter": "trunk diameter (m)",
+                  "biomass": "biomass (m^3)", "nodes": "branches (nodes)", "crown_width": "crown width (m)"}
+        keys = ["height", "slenderness", "crown_flatness", "tip_direction_y", "branching_angle", "trunk_diameter",
+                "biomass", "nodes", "crown_width"]
+        Image.fromarray(box_plots(shapes, keys, titles=titles, panel=(420, 280))).save(args.metrics_plot)
+        print(f"wrote {args.metrics_plot} ({args.seeds} seeds per species)")
 
 
 if __name__ == "__main__":

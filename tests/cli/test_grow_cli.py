@@ -58,3 +58,24 @@ def test_bad_species_file_and_unwritable_out_fail_cleanly(tmp_path):
     assert_clean_failure(cli("grow", "--species", bad, "--out", out), out)
     out = tmp_path / "no" / "such" / "dir"
     assert_clean_failure(cli("grow", "--species", "oak", "--out", out), out)
+
+
+def test_grow_inside_an_rbv_from_the_cli(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from treeform.growth.phenomenological import grow as grow_skeleton
+    from treeform.growth.species import load_species
+    from treeform.structures import RadialBoundingVolume
+
+    RadialBoundingVolume.from_skeleton(grow_skeleton(load_species("maple"), seed=4), level=4).save(tmp_path / "v.npz")
+    exe = Path(sys.executable).parent / "treeform"
+    out = tmp_path / "g"
+    proc = subprocess.run([str(exe), "grow", "--species", "oak", "--rbv", str(tmp_path / "v.npz"), "--out", str(out),
+                           "--lod", "low"], capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "tree.glb").exists()
+    bad = subprocess.run([str(exe), "grow", "--mask", str(tmp_path / "v.npz"), "--out", str(tmp_path / "h")],
+                         capture_output=True, text=True, timeout=240)
+    assert bad.returncode != 0 and bad.stderr.count("error:") == 1 and "Traceback" not in bad.stderr

@@ -483,7 +483,8 @@ def _check_envelope(envelope):
     return inside
 
 
-def grow(params: GrowthParameters, *, seed=0, envelope=None, progress: ProgressCallback | None = None) -> TreeSkeleton:
+def grow(params: GrowthParameters, *, seed=0, envelope=None, initial: TreeSkeleton | None = None,
+         progress: ProgressCallback | None = None) -> TreeSkeleton:
     """Grow a tree with the phenomenological bud-based model (seed 003 §4.3, Tables 2–3).
 
     See the module docstring for the growth function. The root is at the origin, the trunk
@@ -501,6 +502,11 @@ def grow(params: GrowthParameters, *, seed=0, envelope=None, progress: ProgressC
         Growth stays inside (seed 003 §4.3, §4.4.1): an internode that would end outside is
         not created and its bud is shed. Gravity bending is undone where it would move a
         node outside.
+    initial : TreeSkeleton, optional
+        A scaffold to grow from (seed 003 §4.4.1: the crown grows phenomenologically on the
+        structure the self-organizing mode made). Its nodes come first in the result, in
+        their order, are never shed or bent, and carry apical buds at its tips and
+        lateral buds along it (above the pruning height); its root must be the origin.
     progress : callable, optional
         ``progress(stage, event, seconds)`` for the stages ``"grow"`` and ``"structure"``.
 
@@ -525,10 +531,15 @@ def grow(params: GrowthParameters, *, seed=0, envelope=None, progress: ProgressC
         raise InputError("envelope: must contain the tree's base (the origin)")
     rng = as_rng(seed)
     timer = StageTimer(progress)
+    if initial is not None:
+        if not isinstance(initial, TreeSkeleton):
+            raise InputError(f"initial: expected a TreeSkeleton, got {type(initial).__name__}")
+        if not np.allclose(initial.positions[0], 0.0):
+            raise InputError("initial: the scaffold's root must be at the origin")
     with timer.stage("grow"):
-        nodes = _simulate(p, rng, inside)
+        nodes = _simulate(p, rng, inside, initial)
     with timer.stage("structure"):
-        skeleton = _structure(p, nodes, inside)
+        skeleton = _structure(p, nodes, inside, 0 if initial is None else initial.n_nodes)
     skeleton.meta = {"method": "phenomenological",
                      "seed": int(seed) if isinstance(seed, (int, np.integer)) else None, "parameters": p.to_dict()}
     return skeleton
@@ -550,17 +561,59 @@ def _branches(nodes: _Nodes, alive: np.ndarray):
     return levels, level, starts
 
 
-def _simulate(p: GrowthParameters, rng: np.random.Generator, inside) -> _Nodes:
+def _scaffold_buds(p: GrowthParameters, sk: TreeSkeleton, rng: np.random.Generator, outer: float = 1 / 3):
+    """Apical buds at a scaffold's tips; lateral buds on the outer third of every branch above the pruning height.
+
+    The crown grows at the scaffold's periphery, as foliage does, instead of sprouting
+    along the bare main branches the scaffold reproduces."""
+    n = sk.n_nodes
+    seg = np.zeros((n, 3))
+    seg[1:] = sk.positions[1:] - sk.positions[sk.parent[1:]]
+    seg[0] = _UP
+    d = _unit(np.where(np.linalg.norm(seg, axis=1, keepdims=True) > 1e-12, seg, _UP))
+    tips = sk.tips()
+    tips = tips[tips > 0]
+    outer_part = np.zeros(n, bool)
+    for chain in sk.chains():
+        body = chain[1:] if len(chain) > 1 and sk.parent[chain[1]] == chain[0] and chain[0] != 0 else chain
+        outer_part[body[int(len(body) * (1 - outer)):]] = True
+    lat = np.flatnonzero((sk.positions[:, 1] >= p.low_branch_pruning_factor) & (np.arange(n) > 0) & outer_part)
+    nlb = max(p.lateral_buds, 1)
+    lat_node = np.repeat(lat, nlb)
+    ld = d[lat_node]
+    side = _perpendicular(ld, _unit(rng.normal(size=ld.shape)))
+    binorm = np.cross(ld, side)
+    phi = rng.uniform(0, 2 * np.pi, len(lat_node))[:, None]
+    beta = np.radians(p.branching_angle_mean + rng.normal(0.0, p.branching_angle_variance / 2.0, len(lat_node)))[:, None]
+    ldir = _unit(np.cos(beta) * ld + np.sin(beta) * (np.cos(phi) * side + np.sin(phi) * binorm))
+    b_node = np.concatenate([tips, lat_node])
+    b_dir = np.concatenate([d[tips], ldir])
+    b_side = _perpendicular(b_dir, _unit(rng.normal(size=b_dir.shape)))
+    b_apical = np.concatenate([np.ones(len(tips), bool), np.zeros(len(lat_node), bool)])
+    return b_node.astype(np.int64), b_dir, b_side, b_apical, np.zeros(len(b_node), np.int64)
+
+
+def _simulate(p: GrowthParameters, rng: np.random.Generator, inside, initial: TreeSkeleton | None = None) -> _Nodes:
     """Run ``p.age`` growth cycles (see the module docstring); returns every node ever grown."""
     nodes = _Nodes()
-    nodes.add(np.zeros((1, 3)), [-1], 0)
-    # buds: node they sit on, direction, roll reference ("side", perpendicular to the direction),
-    # apical?, age in years
-    b_node = np.zeros(1, np.int64)
-    b_dir = _UP[None].copy()
-    b_side = np.array([[1.0, 0.0, 0.0]])
-    b_apical = np.ones(1, bool)
-    b_age = np.zeros(1, np.int64)
+    if initial is None:
+        nodes.add(np.zeros((1, 3)), [-1], 0)
+        # buds: node they sit on, direction, roll reference ("side", perpendicular to the direction),
+        # apical?, age in years
+        b_node = np.zeros(1, np.int64)
+        b_dir = _UP[None].copy()
+        b_side = np.array([[1.0, 0.0, 0.0]])
+        b_apical = np.ones(1, bool)
+        b_age = np.zeros(1, np.int64)
+        n_fixed = 0
+    else:
+        idx = nodes.add(initial.positions, initial.parent, 0)
+        depth = np.zeros(initial.n_nodes, np.int64)  # parents come first: one forward sweep
+        for i in range(1, initial.n_nodes):
+            depth[i] = depth[initial.parent[i]] + 1
+        nodes.depth[idx] = depth
+        b_node, b_dir, b_side, b_apical, b_age = _scaffold_buds(p, initial, rng)
+        n_fixed = initial.n_nodes
     voxel = VOXEL_FACTOR * p.internode_length_base
     nlb = p.lateral_buds
     bud_roll = 2.0 * np.pi * np.arange(1, nlb + 1) / max(nlb, 1)
@@ -583,6 +636,7 @@ def _simulate(p: GrowthParameters, rng: np.random.Generator, inside) -> _Nodes:
             shaded = starts & (year - nodes.year[:n] >= 2) & (mean_light < p.pruning_factor * tree_light)
             low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
             cut = shaded | low
+            cut[:n_fixed] = False  # the scaffold is never shed
             if cut.any():
                 dead = levels.spread(cut)
                 nodes.alive[:n] &= ~dead
@@ -677,13 +731,16 @@ def _simulate(p: GrowthParameters, rng: np.random.Generator, inside) -> _Nodes:
     n = nodes.n
     levels, _, starts = _branches(nodes, np.flatnonzero(nodes.alive[:n]))
     low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
+    low[:n_fixed] = False
     if low.any():
         nodes.alive[:n] &= ~levels.spread(low)
     return nodes
 
 
-def _structure(p: GrowthParameters, nodes: _Nodes, inside) -> TreeSkeleton:
-    """Compact the living nodes, give them pipe-model radii and bend them under gravity."""
+def _structure(p: GrowthParameters, nodes: _Nodes, inside, n_fixed: int = 0) -> TreeSkeleton:
+    """Compact the living nodes, give them pipe-model radii and bend them under gravity.
+
+    The first ``n_fixed`` nodes (a scaffold) keep their positions."""
     from treeform.growth.radii import branch_orders, pipe_model_radii
 
     n = nodes.n
@@ -702,6 +759,7 @@ def _structure(p: GrowthParameters, nodes: _Nodes, inside) -> TreeSkeleton:
         w = p.gravity_bending_strength * p.gravity_bending_angle_factor ** (radius / TIP_RADIUS - 1.0)
         bent = seg.copy()
         bent[1:] = _unit(_unit(seg[1:]) - w[1:, None] * _UP) * seg_len[1:]
+        bent[:n_fixed] = seg[:n_fixed]
         new_pos = levels.place(pos[0], bent)
 
         def outside(q):

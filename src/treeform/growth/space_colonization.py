@@ -42,7 +42,7 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
                        *, influence_radius: float, kill_distance: float, segment_length: float,
                        max_iterations: int = 1000, growable: np.ndarray | None = None,
                        perception_angle: float | None = None, initial_direction=(0.0, 1.0, 0.0),
-                       candidates: int = 8) -> SpaceColonizationResult:
+                       candidates: int = 8, envelope=None) -> SpaceColonizationResult:
     """Grow a branching structure toward attraction points.
 
     Each step, every attractor is associated with its closest tree node within
@@ -76,6 +76,9 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         ``candidates`` nearest nodes whose cone holds it.
     initial_direction : sequence of 3 floats
         Growth direction of the root (others grow along parent -> node).
+    envelope : object, optional
+        Anything with ``contains(points) -> bool`` (e.g. a RadialBoundingVolume): proposed
+        nodes outside it are not created (seed 003 §4.4: growth stays inside the RBV).
 
     Returns
     -------
@@ -175,6 +178,9 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         ok = norm > 1e-6
         growing, acc, norm = growing[ok], acc[ok], norm[ok]
         new = pos[growing] + seg * acc / norm[:, None]
+        if envelope is not None:
+            ok = np.asarray(envelope.contains(new), bool)
+            growing, new = growing[ok], new[ok]
         # a node that keeps the same attractors proposes the same node again: drop repeats
         keys = np.round(new / q).astype(np.int64)
         keep = np.ones(len(new), bool)

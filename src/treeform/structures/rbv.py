@@ -192,7 +192,11 @@ class RadialBoundingVolume:
         if len(local) == 0:
             raise InputError("points: expected at least one point, got none")
         y, r, t = _polar(local)
+        around = None
         if extra is not None:
+            # a branch tube that encloses the axis (distance < radius, e.g. the trunk)
+            # reaches at least radius - distance in every direction of its layer
+            around = np.maximum(extra - r, 0.0)
             r = r + extra
         if y.min() < 0:
             raise InputError(f"points: {int(np.sum(y < 0))} point(s) lie below the base (lowest y - origin = "
@@ -203,7 +207,12 @@ class RadialBoundingVolume:
         layer, sector = _indices(y, t, height, n)
         radii = np.zeros(n * n)
         np.maximum.at(radii, layer * n + sector, r)
-        return cls(radii.reshape(n, n), height, origin)
+        radii = radii.reshape(n, n)
+        if around is not None and around.max() > 0:
+            floor = np.zeros(n)
+            np.maximum.at(floor, layer, around)
+            radii = np.maximum(radii, floor[:, None])
+        return cls(radii, height, origin)
 
     @classmethod
     def from_points(cls, points, *, level=4, axis_origin=(0.0, 0.0, 0.0)) -> "RadialBoundingVolume":

@@ -37,7 +37,7 @@ class GrowConfig:
     leaf_size: float | None = None
     """Edge length of a leaf-cluster card in metres; None: the species' size."""
     lod: str = "medium"
-    """Level of detail: 'low' (20k triangles), 'medium' (100k), 'high' (400k), 'full' (no bound)."""
+    """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
     radial_segments: int = 8
     """Sides of the branch tubes before any LOD reduction."""
     render_size: int = 512
@@ -46,6 +46,10 @@ class GrowConfig:
     """Vertical field of view of the preview cameras in degrees."""
     out: str | None = None
     """Output directory (None: nothing is written)."""
+    rbv: str | None = None
+    """A RadialBoundingVolume file (.npz): grow by the bi-modal model inside it (seed 003 §4.3–4.4)."""
+    mask: str | None = None
+    """A branch mask image (white = branch) seen from the front, with ``rbv``: the scaffold follows it."""
 
     def validate(self) -> "GrowConfig":
         if not isinstance(self.species, str) or not self.species:
@@ -53,6 +57,8 @@ class GrowConfig:
         if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
             raise InputError(f"seed: expected an integer, got {self.seed!r}")
         self.seed = int(self.seed)
+        if self.mask is not None and self.rbv is None:
+            raise InputError("mask: a branch mask needs --rbv (the volume the crown grows in)")
         if not isinstance(self.params, dict):
             raise InputError(f"params: expected a mapping of growth parameters, got {type(self.params).__name__}")
         check_choice(self.lod, "lod", _lod_names())

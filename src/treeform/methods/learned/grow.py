@@ -201,6 +201,25 @@ def preview_lighting():
 
 
 # ------------------------------------------------------------------------------------ pipeline
+def _read_branch_mask(path) -> np.ndarray:
+    """A branch mask file (white = branch) at its own size, as (H, W) bool."""
+    from PIL import Image
+
+    from treeform.io import read_mask
+
+    try:
+        with Image.open(path) as im:
+            size = im.size
+    except FileNotFoundError:
+        raise InputError(f"--mask {path}: no such file") from None
+    except Exception as exc:
+        raise InputError(f"--mask {path}: not an image ({type(exc).__name__})") from None
+    mask = read_mask(path, (size[1], size[0]))
+    if mask.sum() < 2:
+        raise InputError(f"--mask {path}: no branch pixels (white = branch)")
+    return mask
+
+
 def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: ProgressCallback | None = None,
               config: GrowConfig | None = None, **overrides) -> GrowResult:
     """Grow a leafy, textured 3D tree of a species (seed 003 §4.3, Appendix Tables 2–3).
@@ -257,9 +276,17 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
     rng = as_rng(cfg.seed)
 
     with timer.stage("grow"):
-        from treeform.growth.phenomenological import grow
+        if cfg.rbv is None:
+            from treeform.growth.phenomenological import grow
 
-        skeleton = grow(params, seed=cfg.seed)
+            skeleton = grow(params, seed=cfg.seed)
+        else:
+            from treeform.growth.bimodal import bimodal_grow
+            from treeform.structures import RadialBoundingVolume
+
+            rbv = RadialBoundingVolume.load(cfg.rbv)
+            mask = _read_branch_mask(cfg.mask) if cfg.mask is not None else None
+            skeleton = bimodal_grow(params, rbv, mask=mask, seed=cfg.seed)
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
         from treeform.growth.leaves import attach_leaves

@@ -1,0 +1,361 @@
+"""Bi-modal growth: self-organizing scaffold, then phenomenological crown (seed 003 §4.3–4.4).
+
+With a branch mask, markers are placed on a vertical plane, one per branch pixel
+(§4.4, Fig. 8a–b); a planar branching structure grows toward them by space colonization
+from the bottom-most marker (Fig. 8c); every branch is then turned about the vertical
+axis toward the geometric centre of the left or right half of the sectors of its
+RBV layer (Fig. 8d–f), keeping its front projection on the mask; finally the crown grows with the phenomenological model inside the
+RBV (§4.4.1). Without a mask, the markers fill the RBV's volume, so the scaffold reaches
+every sector before the crown grows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from treeform._shared.checks import check_array, check_positive
+from treeform._shared.errors import InputError
+from treeform._shared.rng import as_rng
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.structures.rbv import RadialBoundingVolume
+from treeform.structures.skeleton import TreeSkeleton
+
+
+@dataclass
+class MaskFrame:
+    """How a branch mask's pixels map onto the vertical plane z = 0 (metres, Y up).
+
+    ``x = (column + 0.5 - base[0]) * scale``, ``y = (base[1] - row - 0.5) * scale``.
+    """
+
+    base: tuple
+    scale: float
+    shape: tuple
+
+    def to_world(self, cols, rows) -> np.ndarray:
+        cols, rows = np.asarray(cols, np.float64), np.asarray(rows, np.float64)
+        x = (cols + 0.5 - self.base[0]) * self.scale
+        y = (self.base[1] - rows - 0.5) * self.scale
+        return np.stack([x, y, np.zeros_like(x)], axis=-1)
+
+    def to_pixels(self, points: np.ndarray) -> np.ndarray:
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        return np.stack([p[:, 0] / self.scale + self.base[0] - 0.5, self.base[1] - p[:, 1] / self.scale - 0.5], 1)
+
+
+def mask_markers(mask: np.ndarray, *, height: float | None = None, scale: float | None = None,
+                 base=None) -> tuple[np.ndarray, MaskFrame]:
+    """One marker per branch pixel on the plane z = 0 (seed 003 §4.4, Fig. 8b).
+
+    The bottom-most branch pixels become the origin (the tree's base) and the mask's
+    vertical extent maps to ``height`` metres.
+
+    Parameters
+    ----------
+    mask : ndarray, shape (H, W), bool
+        Branch pixels.
+    height : float, optional
+        Height in metres of the branch mask's vertical extent (used when ``scale`` is None).
+    scale : float, optional
+        Metres per pixel, when known (e.g. from the whole tree's height in the photo).
+    base : (column, row), optional
+        Pixel position of the tree's base (default: centre of the lowest branch pixels).
+
+    Returns
+    -------
+    markers : ndarray, shape (M, 3)
+    frame : MaskFrame
+
+    Examples
+    --------
+    >>> m = np.zeros((10, 5), bool); m[2:10, 2] = True
+    >>> pts, fr = mask_markers(m, height=4.0)
+    >>> pts.shape, float(pts[:, 1].min()), float(pts[:, 1].max())
+    ((8, 3), 0.0, 4.0)
+    """
+    mask = check_array(mask, "mask", ndim=2).astype(bool)
+    rows, cols = np.nonzero(mask)
+    if len(rows) < 2:
+        raise InputError("mask: needs at least two branch pixels")
+    bottom = rows.max()
+    if scale is None:
+        if height is None:
+            raise InputError("mask_markers: give height or scale")
+        scale = check_positive(height, "height") / max(bottom - rows.min(), 1)
+    scale = check_positive(scale, "scale")
+    if base is None:
+        base = (float(cols[rows == bottom].mean()) + 0.5, bottom + 0.5)
+    frame = MaskFrame((float(base[0]), float(base[1])), scale, mask.shape)
+    return frame.to_world(cols, rows), frame
+
+
+def _preorder(parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """DFS entry index and subtree size of every node (subtree of c = tin in [tin[c], tin[c] + size[c]))."""
+    n = len(parent)
+    children: list[list[int]] = [[] for _ in range(n)]
+    for i in range(1, n):
+        children[parent[i]].append(i)
+    tin = np.zeros(n, np.int64)
+    order = []
+    stack = [0]
+    while stack:
+        v = stack.pop()
+        tin[v] = len(order)
+        order.append(v)
+        stack.extend(reversed(children[v]))
+    size = np.ones(n, np.int64)
+    for i in range(n - 1, 0, -1):
+        size[parent[i]] += size[i]
+    return tin, size
+
+
+def half_centroid(rbv: RadialBoundingVolume, layer: int, side: int) -> np.ndarray:
+    """Area centroid (x, z) of the left (side -1, x < 0) or right (side +1) half of an RBV layer's sectors.
+
+    Each sector is a circular wedge of its stored radius; its centroid lies at
+    ``(2 r / 3) sin(Δ/2) / (Δ/2)`` along the wedge's bisector, weighted by its area ``r² Δ / 2``.
+    """
+    radii = rbv.physical_radii[layer]
+    n = len(radii)
+    width = 2 * np.pi / n
+    theta = (np.arange(n) + 0.5) * width
+    x = np.cos(theta)
+    pick = (x < 0) if side < 0 else (x >= 0)
+    r = radii[pick]
+    if not pick.any() or r.sum() <= 0:
+        return np.array([side * 1.0, 0.0])
+    area = r * r * width / 2
+    dist = (2 * r / 3) * np.sin(width / 2) / (width / 2)
+    c = np.stack([dist * np.cos(theta[pick]), dist * np.sin(theta[pick])], 1)
+    return (area[:, None] * c).sum(0) / area.sum()
+
+
+def orient_scaffold(skeleton: TreeSkeleton, rbv: RadialBoundingVolume, *, max_angle: float = 60.0) -> TreeSkeleton:
+    """Turn a planar scaffold's branches into 3D toward the RBV's sectors (seed 003 §4.4, Fig. 8d–f).
+
+    For each branching point b (a node with several children, in root-to-tip order), every
+    lateral child's subtree is turned about the vertical axis through b so that its
+    horizontal direction points from b toward the geometric centre g of the left or right
+    half of the sectors of b's RBV layer (the half on the branch's own side of the plane):
+    toward where that layer's crown extends farthest.
+
+    The turn keeps the branch's front projection: instead of rotating (which would shorten
+    it in the photo and move it off the branch mask), each node keeps its x offset from b
+    and takes the depth offset ``dz = dx · tan(θ)``, θ the angle from the ±x axis to g − b
+    (clamped to ``max_angle``). Seen from the front the scaffold still covers the mask; in
+    3D the branch points at g. The main child (largest subtree) is not turned.
+
+    Returns
+    -------
+    TreeSkeleton
+        Same topology, radii and order; new positions (x and y unchanged).
+    """
+    parent = skeleton.parent
+    n = skeleton.n_nodes
+    pos = skeleton.positions.copy()
+    tin, size = _preorder(parent)
+    order = np.argsort(tin)
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for i in range(1, n):
+        kids[parent[i]].append(i)
+    layers = rbv.radii.shape[0]
+    top = rbv.physical_height
+    limit = np.tan(np.radians(max_angle))
+    for b in range(n):
+        if len(kids[b]) < 2:
+            continue
+        main = max(kids[b], key=lambda k: (size[k], -k))
+        layer = int(np.clip(pos[b, 1] / max(top, 1e-9) * layers, 0, layers - 1))
+        for c in kids[b]:
+            if c == main:
+                continue
+            sub = order[tin[c]: tin[c] + size[c]]
+            dx = pos[sub, 0] - pos[b, 0]
+            mean_dx = dx.mean()
+            if abs(mean_dx) < 1e-9:
+                continue
+            side = -1 if mean_dx < 0 else 1
+            g = half_centroid(rbv, layer, side) + rbv.origin[[0, 2]] - pos[b, [0, 2]]
+            if abs(g[0]) < 1e-9 or np.sign(g[0]) != side:
+                continue
+            slope = float(np.clip(g[1] / g[0], -limit, limit))
+            pos[sub, 2] = pos[b, 2] + dx * slope
+    return TreeSkeleton(pos, parent, skeleton.radius, skeleton.order, skeleton.age, dict(skeleton.meta))
+
+
+class _AboveGround:
+    """The half-space y >= 0 (nothing grows into the ground)."""
+
+    def contains(self, points):
+        return np.asarray(points)[:, 1] >= 0.0
+
+
+class _Shifted:
+    """An envelope seen from coordinates shifted by ``-offset``, plus a thin column around the axis.
+
+    The column (radius ``axis_tolerance``) lets the scaffold's first steps leave the base,
+    where the RBV is only as wide as the trunk, without stalling.
+    """
+
+    def __init__(self, env, offset, axis_tolerance: float = 0.0):
+        self.env, self.offset = env, np.asarray(offset, np.float64)
+        self.tol = float(axis_tolerance)
+
+    def contains(self, points):
+        p = np.asarray(points, np.float64)
+        ok = self.env.contains(p + self.offset)
+        if self.tol > 0:
+            ok |= (np.hypot(p[:, 0], p[:, 2]) <= self.tol) & (p[:, 1] >= 0) & (p[:, 1] <= self.env.physical_height)
+        return ok
+
+
+def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance: float | None = None,
+                    influence_radius: float | None = None, perception_angle: float = 90.0,
+                    envelope=None, root=None, trunk_height: float = 0.0) -> TreeSkeleton:
+    """Self-organizing growth toward markers from ``root``, growing up first (§4.4, Fig. 8c).
+
+    Reuses :func:`treeform.growth.space_colonization` with a perception cone. ``root``
+    defaults to the bottom-most marker, dropped to y = 0; the result is expressed with
+    the root at the origin (``envelope`` is given in the markers' coordinates). With
+    ``trunk_height`` > 0 a vertical trunk of that height is laid first and only its top
+    sprouts (a bole through the RBV's narrow lowest layers).
+    """
+    from treeform.growth.radii import branch_orders, pipe_model_radii
+    from treeform.growth.space_colonization import space_colonization
+
+    markers = check_array(markers, "markers", ndim=2).reshape(-1, 3)
+    seg = check_positive(segment_length, "segment_length")
+    if root is None:
+        root = markers[np.argmin(markers[:, 1])].copy()
+        root[1] = 0.0
+    root = np.asarray(root, np.float64).reshape(3)
+    k = max(1, int(trunk_height / seg) + 1)
+    start = root + np.outer(np.linspace(0, trunk_height, k), [0.0, 1.0, 0.0])
+    growable = np.zeros(k, bool)
+    growable[-1] = True
+    res = space_colonization(markers, start, influence_radius=influence_radius or 40 * seg,
+                             kill_distance=kill_distance or 2.0 * seg, segment_length=seg,
+                             perception_angle=perception_angle, envelope=envelope, growable=growable)
+    pos = res.positions - np.array([root[0], 0.0, root[2]])
+    radius = pipe_model_radii(res.parent, tip_radius=0.01)
+    return TreeSkeleton(pos, res.parent, radius, branch_orders(res.parent, radius), res.iteration.astype(float))
+
+
+def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None = None, mask_scale: float | None = None,
+                 mask_base=None, seed=0,
+                 markers: int = 4000, segment_length: float | None = None, max_markers: int = 40_000,
+                 crown_years: int = 2,
+                 progress: ProgressCallback | None = None) -> TreeSkeleton:
+    """Grow a tree by the bi-modal model of seed 003 §4.3–4.4 inside a radial bounding volume.
+
+    Parameters
+    ----------
+    params : GrowthParameters
+        Species parameters for the phenomenological crown.
+    rbv : RadialBoundingVolume
+        The target volume (physical units: metres, base at its origin).
+    mask : ndarray, shape (H, W), bool, optional
+        Branch pixels of the tree seen from the front (+Z). Markers go on the plane z = 0;
+        without a mask, ``markers`` blue-noise markers fill the RBV's volume.
+    mask_scale : float, optional
+        Metres per mask pixel (default: the mask's vertical extent spans the RBV's height).
+    mask_base : (column, row), optional
+        The tree base's pixel (default: centre of the lowest branch pixels).
+    seed : int
+    segment_length : float, optional
+        Scaffold internode in metres (default: one mask pixel with a mask, so the scaffold
+        traces every branch; 1/60 of the RBV height without).
+    max_markers : int
+        At most this many branch pixels become markers (a deterministic subset).
+    crown_years : int
+        Growth cycles of the phenomenological crown on the scaffold (the scaffold already
+        stands for the grown tree; the crown adds the last years' shoots).
+    progress : callable, optional
+
+    Returns
+    -------
+    TreeSkeleton
+        Scaffold nodes first (never shed), then the crown; ``meta["n_scaffold"]`` counts them.
+        With a mask, scaffold radii follow the mask's branch widths (half the local width).
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.growth.phenomenological import grow
+    from treeform.growth.radii import branch_orders
+    from treeform.growth.sampling import blue_noise_points
+
+    if not isinstance(rbv, RadialBoundingVolume):
+        raise InputError(f"rbv: expected a RadialBoundingVolume, got {type(rbv).__name__}")
+    rng = as_rng(seed)
+    timer = StageTimer(progress)
+    height = rbv.physical_height
+    seg = segment_length or height / 60
+    with timer.stage("markers"):
+        if mask is not None:
+            pts, frame = mask_markers(mask, height=height, scale=mask_scale, base=mask_base)
+            seg = segment_length or frame.scale
+            if len(pts) > max_markers:
+                pts = pts[np.sort(rng.choice(len(pts), max_markers, replace=False))]
+        else:
+            r = float(rbv.physical_radii.max())
+            lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
+            hi = np.asarray(rbv.origin) + [r, height, r]
+            pts = blue_noise_points(rbv.contains, (lo, hi), markers, seed=rng) - [rbv.origin[0], 0, rbv.origin[2]]
+    with timer.stage("scaffold"):
+        if mask is not None:
+            scaffold = planar_scaffold(pts, segment_length=seg, kill_distance=1.5 * seg, perception_angle=90.0,
+                                       root=np.zeros(3), envelope=_AboveGround())
+        else:
+            local = _Shifted(rbv, rbv.origin * [1, 0, 1], axis_tolerance=2 * seg)
+            # a bole up to the first layer wide enough to branch in
+            radii = rbv.physical_radii.max(axis=1)
+            wide = np.flatnonzero(radii > min(4 * seg, 0.5 * radii.max()))
+            bole = (wide[0] / len(radii)) * height
+            scaffold = planar_scaffold(pts, segment_length=seg, perception_angle=120.0, envelope=local,
+                                       root=np.zeros(3), trunk_height=bole)
+        if mask is not None:
+            # branch widths from the mask, read while the scaffold still lies on the plane:
+            # every branch pixel belongs to its nearest scaffold node, whose tube must reach
+            # it, but no wider than the branch's local half-width (5x5 maximum of the
+            # distance transform less half a pixel)
+            from scipy.spatial import cKDTree
+
+            half = ndi.maximum_filter(np.maximum(ndi.distance_transform_edt(np.asarray(mask, bool)) - 0.25, 0.0), 5)
+            # one Lloyd step: each node moves to the centroid of the branch pixels nearest to it,
+            # which centres the tubes on the branches (space colonization's averaged steps wander
+            # up to a pixel off a thin branch's ridge)
+            _, owner = cKDTree(scaffold.positions[:, :2]).query(pts[:, :2])
+            cnt = np.bincount(owner, minlength=scaffold.n_nodes)
+            cen = np.stack([np.bincount(owner, pts[:, c], scaffold.n_nodes) for c in (0, 1)], 1)
+            moved = scaffold.positions.copy()
+            has = cnt > 0
+            has[0] = False
+            moved[has, :2] = cen[has] / cnt[has, None]
+            scaffold = TreeSkeleton(moved, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
+            px = frame.to_pixels(scaffold.positions)
+            cap = half[np.clip(px[:, 1].astype(int), 0, frame.shape[0] - 1),
+                       np.clip(px[:, 0].astype(int), 0, frame.shape[1] - 1)]
+            d, owner = cKDTree(scaffold.positions[:, :2]).query(pts[:, :2])
+            reach = np.zeros(scaffold.n_nodes)
+            np.maximum.at(reach, owner, d / frame.scale)
+            r_mask = np.minimum(reach + 0.5, cap) * frame.scale
+            scaffold = orient_scaffold(scaffold, rbv)
+        scaffold = TreeSkeleton(scaffold.positions + [rbv.origin[0], 0, rbv.origin[2]], scaffold.parent,
+                                scaffold.radius, scaffold.order, scaffold.age)
+        scaffold.positions[0] = 0.0
+    with timer.stage("crown"):
+        from dataclasses import replace
+
+        sk = grow(replace(params, age=max(1, min(int(crown_years), params.age))), seed=rng, envelope=rbv,
+                  initial=scaffold)
+    radius = sk.radius.copy()
+    k = scaffold.n_nodes
+    if mask is not None:
+        # where the mask shows a branch, the scaffold takes its width from the mask
+        on = r_mask > 0
+        radius[:k][on] = r_mask[on]
+    meta = dict(sk.meta)
+    meta.update({"method": "bimodal", "n_scaffold": int(k)})
+    return TreeSkeleton(sk.positions, sk.parent, radius, branch_orders(sk.parent, radius), sk.age, meta)
