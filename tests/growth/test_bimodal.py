@@ -30,7 +30,7 @@ def test_growth_inside_a_target_rbv_fills_it():
 
 
 def _front_camera(h, size=512):
-    dist = 20 * h
+    dist = 1000 * h
     return Camera(size, size, 2 * np.degrees(np.arctan(0.6 * h / dist)), (0, h / 2, dist), (0, h / 2, 0),
                   near=dist - 3 * h, far=dist + 3 * h)
 

@@ -27,7 +27,10 @@ from treeform.structures.skeleton import TreeSkeleton
 class MaskFrame:
     """How a branch mask's pixels map onto the vertical plane z = 0 (metres, Y up).
 
-    ``x = (column + 0.5 - base[0]) * scale``, ``y = (base[1] - row - 0.5) * scale``.
+    ``x = (column + 0.5 - base[0]) * scale``, ``y = (base[1] - row - 0.5) * scale``: an
+    orthographic view from +Z. Depth offsets added later (branch orientation) keep a node
+    on its pixel only in such a view; with a close perspective camera they shift by the
+    magnification change ``z / distance``.
     """
 
     base: tuple
