@@ -32,6 +32,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/run.py
 	$(PY) benchmarks/bench_growth.py
 	$(PY) benchmarks/bench_variations.py
+	$(PY) benchmarks/bench_bimodal.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -68,7 +68,7 @@ def billboard_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="RGBA billboard (PNG)."),
     sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write photo | trimap | billboard (PNG)."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    sky_gaps: bool = typer.Option(True, "--sky-gaps/--no-sky-gaps", help="Make sky seen through the crown transparent."),
+    sky_gaps: bool = typer.Option(False, "--sky-gaps/--no-sky-gaps", help="Also make sky seen through gaps in the crown transparent (beyond the paper)."),
 ):
     """Photo -> RGBA billboard by segmentation, trimap and alpha matting (seed 000 §4.3)."""
     from treeform.methods.variations.pipeline import BILLBOARD_STAGES, billboard

@@ -48,7 +48,7 @@ class VariationsConfig:
     """Long side a photo is reduced to before a billboard is made of it."""
     matting_side: int = 800
     """Long side at which alpha matting runs (the alpha is upsampled to the photo's size)."""
-    sky_gaps: bool = True
+    sky_gaps: bool = False
     """Billboards: make sky seen through gaps in the crown transparent (the automatic
     segmentation counts those gaps as tree, so this lowers the IoU with it a little)."""
 

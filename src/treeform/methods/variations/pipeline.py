@@ -540,8 +540,9 @@ def billboard(photo, *, out=None, sheet=None, config: VariationsConfig | None = 
 
     The photo is segmented automatically (:func:`treeform.segment.segment_tree`); a
     trimap is derived from the segmentation (a dilated band = unknown, the eroded trunk
-    and points sampled in the eroded crown = foreground, sky seen through crown gaps and
-    the rest = background, :func:`treeform.segment.make_trimap`); closed-form alpha
+    and points sampled in the eroded crown = foreground, the rest = background — with
+    ``sky_gaps=True`` also sky seen through crown gaps, beyond the paper,
+    :func:`treeform.segment.make_trimap`); closed-form alpha
     matting and foreground colour estimation (PyMatting) give the billboard, which is
     cropped to the tree with a small transparent margin.
 
