@@ -11,24 +11,14 @@ Run: ``python benchmarks/bench_variations.py [--repeat 7]``. Prints a markdown t
 from __future__ import annotations
 
 import argparse
-import os
-import platform
-import statistics
 import sys
-import time
 from pathlib import Path
+
+from _common import machine, median_time  # benchmarks/ is on sys.path when a script runs
 
 ROOT = Path(__file__).resolve().parents[1]
 BILLBOARDS = ROOT.parent / "shared" / "data" / "billboards"
 
-
-def median_time(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), times
 
 
 def main(argv=None):
@@ -53,8 +43,7 @@ def main(argv=None):
     for path in (big, small):
         med, _ = median_time(lambda: process_exemplar(read_rgba(path)), args.repeat)
         rows.append((f"process one exemplar ({path.name}, read → Cr, Cs)", med, "≤ 1"))
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}; medians of {args.repeat}")
+    print(f"machine: {machine()}; medians of {args.repeat}")
     print("| benchmark | median (s) | target (s) |\n|---|---|---|")
     for name, med, target in rows:
         print(f"| {name} | {med:.3f} | {target} |")

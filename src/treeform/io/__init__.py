@@ -9,7 +9,7 @@ from treeform.io.gltf import read_glb, read_glb_counts, write_glb
 from treeform.io.images import MAX_PIXELS, read_mask, read_photo, write_png
 from treeform.io.obj import write_obj
 from treeform.io.ply import read_skeleton_ply, write_skeleton_ply
-from treeform.io.outputs import check_out_dir, check_out_file, write_json, write_staged
+from treeform.io.outputs import check_out_dir, check_out_file, write_json, write_staged, write_tree_outputs
 from treeform.io.registry import known_extensions, register_writer, save
 
 __all__ = [
@@ -30,4 +30,5 @@ __all__ = [
     "write_png",
     "write_skeleton_ply",
     "write_staged",
+    "write_tree_outputs",
 ]

@@ -101,3 +101,25 @@ def write_staged(out_dir, writers: Iterable[Callable[[Path], object]]) -> dict:
         raise OutputError(f"--out {out_dir}: write failed ({exc.strerror or exc})") from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+def write_tree_outputs(out_dir, *, mesh, skeleton, preview, config: dict, metrics: dict) -> dict:
+    """Write a tree's standard outputs all-or-nothing.
+
+    tree.glb, tree.obj (+ .mtl and textures), skeleton.json, skeleton.ply, preview.png,
+    config.json and metrics.json, via :func:`write_staged`.
+    """
+    from treeform.io.gltf import write_glb
+    from treeform.io.images import write_png
+    from treeform.io.obj import write_obj
+    from treeform.io.ply import write_skeleton_ply
+
+    return write_staged(out_dir, [
+        lambda d: write_glb(mesh, d / "tree.glb"),
+        lambda d: write_obj(mesh, d / "tree.obj"),
+        lambda d: skeleton.save(d / "skeleton.json"),
+        lambda d: write_skeleton_ply(skeleton, d / "skeleton.ply"),
+        lambda d: write_png(preview, d / "preview.png"),
+        lambda d: write_json(d / "config.json", config),
+        lambda d: write_json(d / "metrics.json", metrics),
+    ])

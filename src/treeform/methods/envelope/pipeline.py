@@ -315,17 +315,10 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
 
 
 def _write_outputs(res: Reconstruction, out_dir: Path) -> dict:
-    """Write every output into ``out_dir`` all-or-nothing (see :func:`treeform.io.write_staged`)."""
-    from treeform.io import write_glb, write_json, write_obj, write_png, write_skeleton_ply, write_staged
+    """Write every output into ``out_dir`` all-or-nothing (:func:`treeform.io.write_tree_outputs`)."""
+    from treeform.io import write_tree_outputs
 
     config = {"treeform": __version__, "method": "envelope", "photo": res.photo.source,
               "config": res.config.to_dict()}
-    return write_staged(out_dir, [
-        lambda d: write_glb(res.mesh, d / "tree.glb"),
-        lambda d: write_obj(res.mesh, d / "tree.obj"),
-        lambda d: res.skeleton.save(d / "skeleton.json"),
-        lambda d: write_skeleton_ply(res.skeleton, d / "skeleton.ply"),
-        lambda d: write_png(res.preview, d / "preview.png"),
-        lambda d: write_json(d / "config.json", config),
-        lambda d: write_json(d / "metrics.json", res.metrics),
-    ])
+    return write_tree_outputs(out_dir, mesh=res.mesh, skeleton=res.skeleton, preview=res.preview, config=config,
+                              metrics=res.metrics)

@@ -341,19 +341,10 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
 
 
 def _write_outputs(res: GrowResult, out_dir: Path) -> dict:
-    """Write every output of a grow run into ``out_dir`` atomically (see :func:`write_staged`)."""
-    from treeform.io import write_glb, write_obj, write_png, write_skeleton_ply
+    """Write every output of a grow run into ``out_dir`` all-or-nothing (:func:`treeform.io.write_tree_outputs`)."""
+    from treeform.io import write_tree_outputs
 
     config = {"treeform": __version__, "method": "learned.grow", "config": res.config.to_dict(),
               "parameters": res.parameters.to_dict()}
-    return write_staged(out_dir, [
-        lambda d: write_glb(res.mesh, d / "tree.glb"),
-        lambda d: write_obj(res.mesh, d / "tree.obj"),
-        lambda d: res.skeleton.save(d / "skeleton.json"),
-        lambda d: write_skeleton_ply(res.skeleton, d / "skeleton.ply"),
-        lambda d: write_png(res.preview, d / "preview.png"),
-        lambda d: write_json(d / "config.json", config),
-        lambda d: write_json(d / "metrics.json", res.metrics),
-    ])
-
-
+    return write_tree_outputs(out_dir, mesh=res.mesh, skeleton=res.skeleton, preview=res.preview, config=config,
+                              metrics=res.metrics)
