@@ -1,34 +1,18 @@
 """The treeform command: happy path and every bad input the issue lists (one-line error, exit != 0, no files)."""
 
-import io
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from cli_helpers import assert_clean_failure, cli
 from treeform import __version__
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
-EXE = Path(sys.executable).parent / "treeform"
 
 
-def cli(*args, timeout=240):
-    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-m", "treeform"]
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "COLUMNS": "120"})
-
-
-def assert_clean_failure(proc, out: Path):
-    assert proc.returncode != 0, proc.stdout + proc.stderr
-    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
-    lines = [l for l in proc.stderr.splitlines() if l.startswith("error:")]
-    assert len(lines) == 1, proc.stderr
-    assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
 
 
 def test_version():

@@ -1,26 +1,11 @@
 """`treeform grow`: writes its files; bad input fails with one `error:` line, no traceback, no files."""
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
-EXE = Path(sys.executable).parent / "treeform"
+from cli_helpers import assert_clean_failure, cli
 
 
-def cli(*args, timeout=240):
-    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-m", "treeform.cli.app"]
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "COLUMNS": "120"})
 
-
-def assert_clean_failure(proc, out: Path):
-    assert proc.returncode != 0, proc.stdout + proc.stderr
-    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
-    lines = [l for l in proc.stderr.splitlines() if l.startswith("error:")]
-    assert len(lines) == 1, proc.stderr
-    assert not out.exists() or not any(out.iterdir())
 
 
 def test_help_lists_grow():
@@ -61,21 +46,13 @@ def test_bad_species_file_and_unwritable_out_fail_cleanly(tmp_path):
 
 
 def test_grow_inside_an_rbv_from_the_cli(tmp_path):
-    import subprocess
-    import sys
-    from pathlib import Path
-
     from treeform.growth.phenomenological import grow as grow_skeleton
     from treeform.growth.species import load_species
     from treeform.structures import RadialBoundingVolume
 
     RadialBoundingVolume.from_skeleton(grow_skeleton(load_species("maple"), seed=4), level=4).save(tmp_path / "v.npz")
-    exe = Path(sys.executable).parent / "treeform"
     out = tmp_path / "g"
-    proc = subprocess.run([str(exe), "grow", "--species", "oak", "--rbv", str(tmp_path / "v.npz"), "--out", str(out),
-                           "--lod", "low"], capture_output=True, text=True, timeout=240)
+    proc = cli("grow", "--species", "oak", "--rbv", tmp_path / "v.npz", "--out", out, "--lod", "low")
     assert proc.returncode == 0, proc.stderr
     assert (out / "tree.glb").exists()
-    bad = subprocess.run([str(exe), "grow", "--mask", str(tmp_path / "v.npz"), "--out", str(tmp_path / "h")],
-                         capture_output=True, text=True, timeout=240)
-    assert bad.returncode != 0 and bad.stderr.count("error:") == 1 and "Traceback" not in bad.stderr
+    assert_clean_failure(cli("grow", "--mask", tmp_path / "v.npz", "--out", tmp_path / "h"), tmp_path / "h")

@@ -1,33 +1,23 @@
 """``treeform metrics TREE``: table and JSON for skeleton JSON / GLB, one-line errors otherwise."""
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from cli_helpers import assert_clean_failure as _clean
+from cli_helpers import cli
 from treeform.geometry import tree_mesh
 from treeform.io import write_glb
 from treeform.metrics import leaf_area_index, tree_metrics
 from treeform.structures import Foliage, TreeSkeleton
 
-EXE = Path(sys.executable).parent / "treeform"
 
 
-def cli(*args, timeout=60):
-    cmd = [str(EXE)] if EXE.exists() else [sys.executable, "-c", "from treeform.cli.app import main; main()"]
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "COLUMNS": "140"})
 
 
 def assert_clean_failure(proc):
-    assert proc.returncode != 0, proc.stdout + proc.stderr
-    assert "Traceback" not in proc.stderr + proc.stdout
-    lines = [l for l in proc.stderr.splitlines() if l.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    _clean(proc, only_error=True)
 
 
 def skeleton():

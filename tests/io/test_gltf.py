@@ -15,7 +15,7 @@ from treeform._shared.errors import InputError, OutputError
 from treeform.io import gltf as gltf_mod
 from treeform.io import read_glb, read_glb_counts, write_glb
 from treeform.io.gltf import accessor_array
-from treeform.structures.mesh import Material, Mesh, MeshPart
+from treeform.structures.mesh import Material, Mesh
 
 REPO = Path(__file__).resolve().parents[2]
 VALIDATOR_SCRIPT = REPO / "tools" / "gltf_validate.mjs"

@@ -48,3 +48,13 @@ def check_choice(value, name: str, choices) -> str:
     if value not in choices:
         raise InputError(f"{name}: expected one of {', '.join(map(str, choices))}; got {value!r}")
     return value
+
+
+def check_known_options(cls, options: dict) -> dict:
+    """Return a copy of ``options`` after checking every key is a field of dataclass ``cls``."""
+    from dataclasses import fields
+
+    unknown = set(options) - {f.name for f in fields(cls)}
+    if unknown:
+        raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
+    return dict(options)

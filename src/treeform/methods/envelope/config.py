@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
 
@@ -92,11 +93,7 @@ class EnvelopeConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "EnvelopeConfig":
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
-        d = dict(d)
+        d = check_known_options(cls, d)
         if "rdm_rotations" in d:
             d["rdm_rotations"] = tuple(d["rdm_rotations"])
         return cls(**d).validate()

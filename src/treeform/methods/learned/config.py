@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numbers
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 
 from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
 
@@ -81,11 +82,7 @@ class GrowConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "GrowConfig":
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
-        d = dict(d)
+        d = check_known_options(cls, d)
         if d.get("out") is not None:
             d["out"] = str(d["out"])
         if "params" in d and d["params"] is not None:

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 from treeform._shared.checks import check_choice
+from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
 
@@ -91,11 +92,7 @@ class VariationsConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "VariationsConfig":
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
-        d = dict(d)
+        d = check_known_options(cls, d)
         for name in ("weight_range", "from_weight_range"):
             if name in d:
                 d[name] = tuple(d[name])
