@@ -33,6 +33,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_growth.py
 	$(PY) benchmarks/bench_variations.py
 	$(PY) benchmarks/bench_bimodal.py
+	$(PY) benchmarks/bench_dataset.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -32,7 +32,8 @@ def bench_species(repeat: int, seeds: int):
     from treeform.growth.phenomenological import grow
     from treeform.growth.species import SPECIES, load_species
     from treeform.methods.learned import GrowConfig
-    from treeform.methods.learned.grow import shape_metrics, twig_nodes
+    from treeform.growth.leaves import twig_nodes
+    from treeform.methods.learned.grow import shape_metrics
     from treeform.metrics import tree_metrics
 
     cfg = GrowConfig()

@@ -2,6 +2,8 @@ from pathlib import Path
 
 import pytest
 
+from treeform._shared.errors import RenderError
+
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"
 PHOTOS = SHARED / "photos"
@@ -22,3 +24,37 @@ def photos_dir():
     if not PHOTOS.exists():
         pytest.skip("../shared/data/photos is not available")
     return PHOTOS
+
+
+@pytest.fixture(scope="session")
+def gl():
+    """The shared OpenGL context; skips the test if none can be created on this machine."""
+    from treeform.render import get_context
+
+    try:
+        return get_context()
+    except RenderError as exc:
+        pytest.skip(str(exc))
+
+
+@pytest.fixture(scope="session")
+def dense_tree_rgba():
+    """A 256² RGBA tree with a dense, bumpy crown of mottled greens (dark patches) on a brown trunk."""
+    import numpy as np
+    import scipy.ndimage as ndi
+
+    rng = np.random.default_rng(7)
+    n = 256
+    yy, xx = np.mgrid[:n, :n] / n
+    ang = np.arctan2(yy - 0.4, xx - 0.5)
+    crown = np.hypot((xx - 0.5) / 0.36, (yy - 0.4) / 0.3) < 1 + 0.08 * np.sin(7 * ang) + 0.05 * np.sin(13 * ang + 1)
+    trunk = (np.abs(xx - 0.5) < 0.025) & (yy > 0.5) & (yy < 0.95)
+    field = ndi.gaussian_filter(rng.normal(size=(n, n)), 6)
+    field = (field - field.min()) / np.ptp(field)
+    fine = ndi.gaussian_filter(rng.normal(size=(n, n)), 1.2)
+    shade = np.clip(0.35 + 0.9 * field + 0.6 * fine, 0.15, 1.4)
+    rgba = np.zeros((n, n, 4), np.uint8)
+    rgba[trunk, :3] = (112, 78, 48)
+    rgba[crown, :3] = np.clip(np.array([62, 118, 40]) * shade[crown, None], 0, 255)
+    rgba[..., 3] = np.where(crown | trunk, 255, 0)
+    return rgba

@@ -9,7 +9,8 @@ import pytest
 from treeform._shared.errors import InputError, OutputError
 from treeform.io import read_glb_counts
 from treeform.methods.learned import GrowConfig
-from treeform.methods.learned.grow import OUTPUT_FILES, STAGES, grow_tree, leaf_positions, shape_metrics
+from treeform.growth.leaves import leaf_positions
+from treeform.methods.learned.grow import OUTPUT_FILES, STAGES, grow_tree, shape_metrics
 from treeform.structures import TreeSkeleton
 
 FAST = dict(lod="low", render_size=128, age=6)

@@ -5,19 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from treeform._shared.errors import RenderError
 from treeform.structures import Material, MeshPart
-
-
-@pytest.fixture(scope="session")
-def gl():
-    """The shared OpenGL context; skips the test if none can be created on this machine."""
-    from treeform.render import get_context
-
-    try:
-        return get_context()
-    except RenderError as exc:
-        pytest.skip(str(exc))
 
 
 def cube_part(center=(0.0, 0.0, 0.0), half=(0.5, 0.5, 0.5), material=None) -> MeshPart:

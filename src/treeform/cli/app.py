@@ -40,16 +40,20 @@ def _main(version: bool = typer.Option(False, "--version", callback=_version, is
     """treeform: photographs of real trees -> 3D tree assets."""
 
 
-def run_api(func, *args, stages=None, **kwargs):
+def run_api(func, *args, stages=None, display=None, **kwargs):
     """Run an API call with a rich progress display; TreeformError -> one line, non-zero exit.
 
     ``func`` must accept ``progress=callback(stage, event, seconds)``; ``stages`` names its
-    stages (for the bar's total; default: the single-photo pipeline's).
+    stages (for the bar's total; default: the single-photo pipeline's). ``display`` replaces
+    the stage bar by another context manager with a ``callback`` (e.g. a
+    :class:`~treeform.cli.progress.CountProgress` for ``progress(done, total)``).
     """
     from treeform.cli.progress import StageProgress
 
+    if display is None:
+        display = StageProgress(stages) if stages else StageProgress()
     try:
-        with StageProgress(stages) if stages else StageProgress() as prog:
+        with display as prog:
             return func(*args, progress=prog.callback, **kwargs)
     except TreeformError as exc:
         typer.echo(f"error: {exc}", err=True)

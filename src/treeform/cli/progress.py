@@ -38,6 +38,37 @@ class StageProgress:
             self.progress.console.print(f"  {stage:<11} {seconds:6.2f} s", highlight=False)
 
 
+class CountProgress:
+    """A progress bar over counted items (``callback(done, total)``), with the rate and time left."""
+
+    def __init__(self, label: str = "samples"):
+        from rich.progress import MofNCompleteColumn, TimeRemainingColumn
+
+        self.label = label
+        self.progress = Progress(SpinnerColumn(), TextColumn(f"[bold]{label}"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+                                 console=_err, transient=False)
+        self.task = None
+        self._start = None
+
+    def __enter__(self):
+        import time
+
+        self.progress.__enter__()
+        self.task = self.progress.add_task(self.label, total=None, rate="")
+        self._start = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        return self.progress.__exit__(*exc)
+
+    def callback(self, done: int, total: int) -> None:
+        import time
+
+        dt = time.perf_counter() - self._start
+        self.progress.update(self.task, completed=done, total=total, rate=f"{done / dt:.2f}/s" if dt > 0 else "")
+
+
 def print_summary(res) -> None:
     """One table of the key metrics and the written files."""
     m = res.metrics

@@ -3,10 +3,12 @@
 - :func:`branch_mesh` — one smooth tube per branch chain (parallel-transport frames).
 - :func:`leaf_cards`, :func:`leaf_texture` — alpha-masked leaf quads and their texture.
 - :func:`tree_mesh`, :data:`LOD_PRESETS` — both parts under a triangle budget.
+- :func:`normal_map_from_height`, :func:`texture_height` — tangent-space normal maps.
 """
 
 from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage
 from treeform.geometry.lod import LOD_PRESETS, plan_lod, tree_mesh
+from treeform.geometry.normal_maps import normal_map_from_height, texture_height
 from treeform.geometry.tubes import MIN_RING_RADIUS, bark_material, bark_texture, branch_mesh, tube_triangle_count
 
 __all__ = [
@@ -19,8 +21,10 @@ __all__ = [
     "leaf_cards",
     "leaf_material",
     "leaf_texture",
+    "normal_map_from_height",
     "plan_lod",
     "texture_coverage",
+    "texture_height",
     "tree_mesh",
     "tube_triangle_count",
 ]

@@ -20,6 +20,7 @@ import numpy as np
 
 from treeform._shared.checks import check_positive
 from treeform._shared.errors import InputError
+from treeform._shared.noise import periodic_noise
 from treeform._shared.rng import as_rng
 from treeform.structures.mesh import Material, MeshPart
 from treeform.structures.skeleton import TreeSkeleton
@@ -33,17 +34,6 @@ _EPS = 1e-12
 
 
 # --------------------------------------------------------------------------- texture
-def _periodic_noise(rng: np.random.Generator, h: int, w: int, sigma_y: float, sigma_x: float) -> np.ndarray:
-    """Tileable Gaussian-filtered noise, normalised to zero mean and unit std. Shape (h, w)."""
-    fy = np.fft.fftfreq(h)[:, None] * h
-    fx = np.fft.rfftfreq(w)[None, :] * w
-    spec = np.fft.rfft2(rng.standard_normal((h, w)))
-    spec *= np.exp(-0.5 * ((fy / sigma_y) ** 2 + (fx / sigma_x) ** 2))
-    n = np.fft.irfft2(spec, s=(h, w))
-    n -= n.mean()
-    return n / (n.std() + _EPS)
-
-
 def bark_texture(size: int = 256, *, seed=0) -> np.ndarray:
     """A procedural, tileable bark texture: brown-grey plates split by vertical fissures.
 
@@ -75,14 +65,14 @@ def bark_texture(size: int = 256, *, seed=0) -> np.ndarray:
     h = w = size
     # Fissures: the zero set of strongly anisotropic noise (long along the grain, short
     # across it) forms a network of cracks that run along the branch, split and rejoin.
-    n = _periodic_noise(rng, h, w, sigma_y=1.0, sigma_x=9.0)
-    n = n + 0.3 * _periodic_noise(rng, h, w, sigma_y=2.0, sigma_x=18.0)
-    width = np.clip(0.3 * (1.0 + 0.35 * _periodic_noise(rng, h, w, sigma_y=4.0, sigma_x=4.0)), 0.03, None)
+    n = periodic_noise(rng, h, w, sigma_y=1.0, sigma_x=9.0)
+    n = n + 0.3 * periodic_noise(rng, h, w, sigma_y=2.0, sigma_x=18.0)
+    width = np.clip(0.3 * (1.0 + 0.35 * periodic_noise(rng, h, w, sigma_y=4.0, sigma_x=4.0)), 0.03, None)
     a = np.abs(n)
     fissure = 1.0 / (1.0 + np.exp((a - width) / 0.04))  # 1 in a crack, 0 on the plates
     relief = np.tanh(a / 0.6)  # plates bulge between the cracks
-    plates = _periodic_noise(rng, h, w, sigma_y=5.0, sigma_x=8.0)
-    grain = _periodic_noise(rng, h, w, sigma_y=25.0, sigma_x=110.0)
+    plates = periodic_noise(rng, h, w, sigma_y=5.0, sigma_x=8.0)
+    grain = periodic_noise(rng, h, w, sigma_y=25.0, sigma_x=110.0)
     light = np.clip(0.3 + 0.2 * np.tanh(0.8 * plates) + 0.45 * relief, 0.0, 1.0)
     plate_dark = np.array([0.33, 0.28, 0.24])
     plate_light = np.array([0.60, 0.56, 0.51])  # greyer highlights

@@ -115,3 +115,104 @@ def color_leaves(foliage: Foliage, pixels: np.ndarray, visible: np.ndarray, imag
         hidden = hidden * np.clip(shade, 0, 1)[:, None]
     color = np.where(np.asarray(visible, bool)[:, None], front, hidden)
     return Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size, np.clip(color, 0, 1), foliage.node)
+
+
+def twig_nodes(skeleton: TreeSkeleton, twig_tips: int = 4) -> np.ndarray:
+    """Indices of the twig nodes: those carrying at most ``twig_tips`` tips in their subtree (never the root).
+
+    Returns
+    -------
+    ndarray of int64, shape (K,)
+    """
+    tips = np.zeros(skeleton.n_nodes)
+    tips[skeleton.tips()] = 1
+    for i in range(skeleton.n_nodes - 1, 0, -1):
+        tips[skeleton.parent[i]] += tips[i]
+    twigs = np.flatnonzero(tips <= twig_tips)
+    return twigs[twigs > 0]
+
+
+def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: int = 4, seed=None) -> np.ndarray:
+    """``n`` leaf-cluster centres scattered around the twigs (seed 003 Appendix: leaves on twigs).
+
+    Each cluster picks a twig node (evenly: every twig gets ``n // twigs`` or one more), a
+    random point on the internode leading to it, and a normal offset of σ = ``size / 3``.
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    n : int
+    size : float
+        Leaf-cluster card size in metres.
+    twig_tips : int
+    seed : int or numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    rng = as_rng(seed)
+    twigs = twig_nodes(skeleton, twig_tips)
+    if n <= 0 or len(twigs) == 0:
+        return np.zeros((0, 3))
+    reps = np.full(len(twigs), n // len(twigs))
+    reps[rng.permutation(len(twigs))[: n % len(twigs)]] += 1
+    node = np.repeat(twigs, reps)
+    a = skeleton.positions[skeleton.parent[node]]
+    b = skeleton.positions[node]
+    t = rng.uniform(0.0, 1.0, (len(node), 1))
+    pts = a + t * (b - a) + rng.normal(0.0, size / 3.0, (len(node), 3))
+    pts[:, 1] = np.maximum(pts[:, 1], size / 2)
+    return pts
+
+
+def _species_colors(foliage: Foliage, base_rgb, center: np.ndarray, radius: float, rng) -> np.ndarray:
+    """Species green with per-leaf brightness / hue variation, darker deep inside the crown."""
+    m = len(foliage)
+    base = np.asarray(base_rgb, np.float32)
+    bright = rng.uniform(0.82, 1.18, (m, 1)).astype(np.float32)
+    hue = rng.normal(0.0, 0.035, (m, 3)).astype(np.float32)
+    hue[:, 1] *= 0.5
+    depth = np.linalg.norm(foliage.positions - center, axis=1) / max(radius, 1e-6)
+    shade = (0.72 + 0.28 * np.clip(depth, 0.0, 1.0)).astype(np.float32)[:, None]
+    return np.clip((base + hue) * bright * shade, 0.0, 1.0)
+
+
+def twig_foliage(skeleton: TreeSkeleton, *, leaf_color, size: float, leaves: int | None = None,
+                 leaves_per_twig: float = 3.0, twig_tips: int = 4, seed=None) -> Foliage:
+    """Leaf clusters of a grown tree on its twigs, in the species' colour (seed 003 Appendix).
+
+    :func:`leaf_positions` scatters the clusters around the twigs, :func:`attach_leaves`
+    hangs them, and each gets the species green with per-leaf brightness / hue variation,
+    darker deep inside the crown.
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    leaf_color : sequence of 3 floats in [0, 1]
+        Mean leaf RGB.
+    size : float
+        Card edge length in metres.
+    leaves : int, optional
+        Number of clusters; None: ``leaves_per_twig`` per twig node.
+    leaves_per_twig : float
+    twig_tips : int
+        A node carrying at most this many tips is a twig.
+    seed : int or numpy.random.Generator
+
+    Returns
+    -------
+    Foliage
+        M clusters (M = 0 for a tree without twigs).
+    """
+    rng = as_rng(seed)
+    n = leaves if leaves is not None else int(round(leaves_per_twig * len(twig_nodes(skeleton, twig_tips))))
+    pts = leaf_positions(skeleton, n, size=size, twig_tips=twig_tips, seed=rng)
+    if not len(pts):
+        return Foliage.empty()
+    lo, hi = pts.min(0), pts.max(0)
+    center = 0.5 * (lo + hi)
+    foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=twig_tips, seed=rng)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    return Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size,
+                   _species_colors(foliage, leaf_color, center, radius, rng), foliage.node)

@@ -131,7 +131,8 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
     index fits below 65535 (the primitive-restart value is never used), else
     ``UNSIGNED_INT``. Materials are PBR metallic-roughness with ``baseColorFactor``, an
     embedded PNG ``baseColorTexture`` when :attr:`Material.texture` is set (sampler
-    LINEAR_MIPMAP_LINEAR / LINEAR, REPEAT), ``alphaMode``, ``alphaCutoff`` (MASK only) and
+    LINEAR_MIPMAP_LINEAR / LINEAR, REPEAT), a ``normalTexture`` when
+    :attr:`Material.normal_texture` is set, ``alphaMode``, ``alphaCutoff`` (MASK only) and
     ``doubleSided``. Parts that share one :class:`Material` object share one glTF material.
 
     Parameters
@@ -179,16 +180,23 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
             "metallicFactor": _clamp01(m.metallic),
             "roughnessFactor": _clamp01(m.roughness),
         }
-        if m.texture is not None:
-            key = id(m.texture)
+        def texture_of(array, name) -> int:
+            key = id(array)
             if key not in texture_index:
-                view = b.add_view(_encode_png(m.texture))
-                images.append({"bufferView": view, "mimeType": "image/png", "name": m.name})
+                view = b.add_view(_encode_png(array))
+                images.append({"bufferView": view, "mimeType": "image/png", "name": name})
                 textures.append({"sampler": 0, "source": len(images) - 1})
                 texture_index[key] = len(textures) - 1
-            pbr["baseColorTexture"] = {"index": texture_index[key], "texCoord": 0}
+            return texture_index[key]
+
+        if m.texture is not None:
+            pbr["baseColorTexture"] = {"index": texture_of(m.texture, m.name), "texCoord": 0}
         mat = {"name": m.name, "pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode,
                "doubleSided": bool(m.double_sided)}
+        if m.normal_texture is not None:
+            mat["normalTexture"] = {"index": texture_of(m.normal_texture, f"{m.name}_normal"), "texCoord": 0}
+            if float(m.normal_scale) != 1.0:
+                mat["normalTexture"]["scale"] = float(m.normal_scale)
         if m.alpha_mode == "MASK":
             mat["alphaCutoff"] = max(float(m.alpha_cutoff), 0.0)
         materials.append(mat)

@@ -71,13 +71,16 @@ _VERTEX_MASK = """
 uniform mat4 u_view;
 uniform mat4 u_proj;
 in vec3 in_pos;
+in vec3 in_nrm;
 in vec2 in_uv;
 in vec4 in_col;
+out vec3 v_nrm;
 out vec2 v_uv;
 out float v_alpha;
 out float v_depth;
 void main() {
     vec4 eye = u_view * vec4(in_pos, 1.0);
+    v_nrm = in_nrm;
     v_uv = in_uv;
     v_alpha = in_col.a;
     v_depth = -eye.z;
@@ -85,28 +88,64 @@ void main() {
 }
 """
 
-# Fragment shaders are compiled per variant (alpha mode, texture or not, flat-normal fallback)
-# so that OPAQUE parts have no ``discard`` (llvmpipe then tests depth before shading).
-# ALPHA_MODE: 0 OPAQUE, 1 MASK, 2 BLEND.
+# Fragment shaders are compiled per variant (alpha mode, texture or not, flat-normal fallback,
+# normal map, shadows) so that OPAQUE parts have no ``discard`` (llvmpipe then tests depth
+# before shading). ALPHA_MODE: 0 OPAQUE, 1 MASK, 2 BLEND.
+# Outputs: 0 colour (premultiplied); 1 ids = (view depth, part + 1, triangle + 1, 1);
+# 2 world normal (facing the viewer on double-sided back faces); 3 uv.
 _FRAGMENT = """
 uniform vec4 u_base_color;
 uniform sampler2D u_tex;
+uniform sampler2D u_ntex;
+uniform float u_nscale;
 uniform float u_cutoff;
 uniform int u_double_sided;
-uniform vec3 u_light_dir;
-uniform vec3 u_key;
+uniform float u_part;
+uniform int u_n_lights;
+uniform vec3 u_light_dirs[8];
+uniform vec3 u_light_cols[8];
 uniform vec3 u_sky;
 uniform vec3 u_ground;
+uniform vec3 u_eye;
+uniform float u_specular;
+uniform float u_shininess;
+#if SHADOWS
+uniform sampler2DShadow u_shadow_map;
+uniform mat4 u_light_vp;
+uniform float u_shadow;
+uniform float u_shadow_texel;
+uniform float u_shadow_offset;
+#endif
 in vec3 v_pos;
 in vec3 v_nrm;
 in vec2 v_uv;
 in vec4 v_col;
 in float v_depth;
 layout(location = 0) out vec4 f_color;
-layout(location = 1) out vec4 f_depth;
+layout(location = 1) out vec4 f_ids;
+layout(location = 2) out vec4 f_normal;
+layout(location = 3) out vec4 f_uv;
+
+#if SHADOWS
+float light_visibility(vec3 p, vec3 n) {
+    vec4 q = u_light_vp * vec4(p + n * u_shadow_offset, 1.0);
+    vec3 c = q.xyz / q.w * 0.5 + 0.5;
+    if (any(lessThan(c, vec3(0.0))) || any(greaterThan(c, vec3(1.0)))) return 1.0;
+    float lit = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+            lit += texture(u_shadow_map, vec3(c.xy + vec2(dx, dy) * u_shadow_texel, c.z));
+    return 1.0 - u_shadow * (1.0 - lit / 9.0);
+}
+#endif
+
 void main() {
-#if FLAT_FALLBACK
-    vec3 flat_n = cross(dFdx(v_pos), dFdy(v_pos));  // faces the viewer; before any discard
+    // derivatives first: before any discard, in uniform control flow
+    vec3 dpx = dFdx(v_pos);
+    vec3 dpy = dFdy(v_pos);
+#if HAS_NTEX
+    vec2 duvx = dFdx(v_uv);
+    vec2 duvy = dFdy(v_uv);
 #endif
     vec4 albedo = u_base_color * v_col;
 #if HAS_TEX
@@ -124,6 +163,7 @@ void main() {
         n = v_nrm / len;
         if (u_double_sided != 0 && !gl_FrontFacing) n = -n;
     } else {
+        vec3 flat_n = cross(dpx, dpy);  // faces the viewer
         float fl = length(flat_n);
         n = fl > 0.0 ? flat_n / fl : vec3(0.0, 1.0, 0.0);
     }
@@ -131,16 +171,53 @@ void main() {
     n = v_nrm / max(len, 1e-30);
     if (u_double_sided != 0 && !gl_FrontFacing) n = -n;
 #endif
+    vec3 geo_n = n;
+#if HAS_NTEX
+    // cotangent frame from screen-space derivatives (no stored tangents); glTF's v grows
+    // downwards, so the map's +Y (up in the texture) is -dp/dv
+    vec3 tn = texture(u_ntex, v_uv).xyz * 2.0 - 1.0;
+    tn.xy *= u_nscale;
+    vec3 dp2perp = cross(dpy, n);
+    vec3 dp1perp = cross(n, dpx);
+    vec3 T = dp2perp * duvx.x + dp1perp * duvy.x;
+    vec3 B = dp2perp * duvx.y + dp1perp * duvy.y;
+    float tb = max(dot(T, T), dot(B, B));
+    if (tb > 1e-30) {
+        float inv = inversesqrt(tb);
+        vec3 m = T * inv * tn.x - B * inv * tn.y + n * max(tn.z, 0.0);
+        float ml = length(m);
+        if (ml > 1e-12) n = m / ml;
+    }
+#endif
+    vec3 view_dir = normalize(u_eye - v_pos);
     vec3 ambient = mix(u_ground, u_sky, 0.5 + 0.5 * n.y);
-    vec3 light = ambient + u_key * max(dot(n, u_light_dir), 0.0);
-    vec3 rgb = clamp(albedo.rgb * light, 0.0, 1.0);
+    vec3 diffuse = vec3(0.0);
+    vec3 spec = vec3(0.0);
+    for (int i = 0; i < 8; ++i) {
+        if (i >= u_n_lights) break;
+        vec3 l = u_light_dirs[i];
+        float ndl = max(dot(n, l), 0.0);
+        float vis = 1.0;
+#if SHADOWS
+        if (i == 0) vis = light_visibility(v_pos, geo_n);
+#endif
+        diffuse += u_light_cols[i] * (ndl * vis);
+        if (u_specular > 0.0 && ndl > 0.0) {  // normalised Blinn-Phong
+            vec3 h = normalize(l + view_dir);
+            float s = pow(max(dot(n, h), 0.0), u_shininess) * (u_shininess + 8.0) / 25.13274;
+            spec += u_light_cols[i] * (s * ndl * vis);
+        }
+    }
+    vec3 rgb = clamp(albedo.rgb * (ambient + diffuse) + u_specular * spec, 0.0, 1.0);
 #if ALPHA_MODE == 2
     float a = clamp(albedo.a, 0.0, 1.0);
 #else
     float a = 1.0;
 #endif
     f_color = vec4(rgb * a, a);  // premultiplied
-    f_depth = vec4(v_depth, 0.0, 0.0, 1.0);
+    f_ids = vec4(v_depth, u_part + 1.0, float(gl_PrimitiveID) + 1.0, 1.0);
+    f_normal = vec4(geo_n, 1.0);
+    f_uv = vec4(v_uv, 0.0, 1.0);
 }
 """
 
@@ -148,10 +225,15 @@ _FRAGMENT_MASK = """
 uniform vec4 u_base_color;
 uniform sampler2D u_tex;
 uniform float u_cutoff;
+uniform int u_double_sided;
+uniform float u_part;
+in vec3 v_nrm;
 in vec2 v_uv;
 in float v_alpha;
 in float v_depth;
-layout(location = 0) out vec4 f_depth;
+layout(location = 0) out vec4 f_ids;
+layout(location = 1) out vec4 f_normal;
+layout(location = 2) out vec4 f_uv;
 void main() {
 #if ALPHA_MODE != 0
     float a = u_base_color.a * v_alpha;
@@ -164,14 +246,20 @@ void main() {
     if (a < 0.001953125) discard;
 #endif
 #endif
-    f_depth = vec4(v_depth, 0.0, 0.0, 1.0);
+    vec3 n = v_nrm / max(length(v_nrm), 1e-30);
+    if (u_double_sided != 0 && !gl_FrontFacing) n = -n;
+    f_ids = vec4(v_depth, u_part + 1.0, float(gl_PrimitiveID) + 1.0, 1.0);
+    f_normal = vec4(n, 1.0);
+    f_uv = vec4(v_uv, 0.0, 1.0);
 }
 """
 
 
-def _source(body: str, alpha_mode: int, has_tex: bool, flat: bool) -> str:
+def _source(body: str, alpha_mode: int, has_tex: bool, flat: bool, has_ntex: bool = False,
+            shadows: bool = False) -> str:
     return (f"#version 330\n#define ALPHA_MODE {alpha_mode}\n#define HAS_TEX {int(has_tex)}\n"
-            f"#define FLAT_FALLBACK {int(flat)}\n" + body)
+            f"#define FLAT_FALLBACK {int(flat)}\n#define HAS_NTEX {int(has_ntex)}\n"
+            f"#define SHADOWS {int(shadows)}\n" + body)
 
 
 _ALPHA_MODES = {"OPAQUE": 0, "MASK": 1, "BLEND": 2}
@@ -194,13 +282,15 @@ class _State:
         self.white = ctx.texture((1, 1), 4, data=b"\xff\xff\xff\xff")
         self.parts: OrderedDict[int, _PartGPU] = OrderedDict()
         self.textures: OrderedDict[int, tuple] = OrderedDict()
+        self.shadow = None
 
-    def program(self, pass_: str, alpha_mode: int, has_tex: bool, flat: bool):
+    def program(self, pass_: str, alpha_mode: int, has_tex: bool, flat: bool, has_ntex: bool = False,
+                shadows: bool = False):
         """The (cached) program for one pass ("shade" or "mask") and material variant."""
         if pass_ == "mask":
-            flat = False
+            flat = has_ntex = shadows = False
             has_tex = has_tex and alpha_mode != 0
-        key = (pass_, alpha_mode, bool(has_tex), bool(flat))
+        key = (pass_, alpha_mode, bool(has_tex), bool(flat), bool(has_ntex), bool(shadows))
         prog = self.programs.get(key)
         if prog is None:
             vs, fs = (_VERTEX, _FRAGMENT) if pass_ == "shade" else (_VERTEX_MASK, _FRAGMENT_MASK)
@@ -211,11 +301,30 @@ class _State:
             self.programs[key] = prog
         return key, prog
 
+    def shadow_target(self, size: int):
+        """The (cached) depth texture and framebuffer of the key light's shadow map."""
+        if self.shadow is None or self.shadow[0].size != (size, size):
+            if self.shadow is not None:
+                self.shadow[1].release()
+                self.shadow[0].release()
+            tex = self.ctx.depth_texture((size, size))
+            tex.compare_func = "<="
+            tex.repeat_x = tex.repeat_y = False
+            import moderngl
+
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.shadow = (tex, self.ctx.framebuffer(depth_attachment=tex))
+        return self.shadow
+
     def release(self):
         clear_cache()
         for obj in self.programs.values():
             obj.release()
         self.programs.clear()
+        if self.shadow is not None:
+            self.shadow[1].release()
+            self.shadow[0].release()
+            self.shadow = None
         self.white.release()
 
 
@@ -354,9 +463,23 @@ def _texture_gpu(state: _State, texture: np.ndarray | None):
 # public API
 
 
+MAX_LIGHTS = 8
+"""Directional lights a :class:`Lighting` may hold (key light included)."""
+
+
+def _vec3(value, name: str) -> tuple:
+    try:
+        v = tuple(float(x) for x in value)
+    except (TypeError, ValueError):
+        v = ()
+    if len(v) != 3 or not all(np.isfinite(v)):
+        raise InputError(f"{name}: expected 3 finite numbers, got {value!r}")
+    return v
+
+
 @dataclass(frozen=True)
 class Lighting:
-    """Key directional light plus hemisphere (sky / ground) ambient, Lambert shading.
+    """Directional lights plus hemisphere (sky / ground) ambient; Lambert + Blinn-Phong shading.
 
     Parameters
     ----------
@@ -369,7 +492,18 @@ class Lighting:
     sky, ground : sequence of 3 floats
         Ambient colour for normals pointing straight up / straight down (blended by ``n.y``).
     camera_relative : bool
-        Interpret ``direction`` in the camera's frame, so every view is lit alike.
+        Interpret every light direction in the camera's frame, so every view is lit alike.
+    lights : sequence of (direction, colour) pairs
+        Further directional lights (at most ``MAX_LIGHTS - 1``), each two 3-vectors, in the
+        same frame as ``direction`` (seed 003 §4.2.1: up to eight lights).
+    shadow : float in [0, 1]
+        Strength of the key light's shadows (0: none; 1: the key light is fully blocked):
+        a ``shadow_resolution``² shadow map, alpha-tested like the mask, filtered 3x3 (PCF).
+    shadow_resolution : int
+        Edge of the square shadow map in texels.
+    specular : float >= 0
+        Weight of the normalised Blinn-Phong highlight; its exponent comes from each
+        material's ``roughness`` (``2 / r**4 - 2``, as in Karis 2013).
 
     Notes
     -----
@@ -381,27 +515,55 @@ class Lighting:
     sky: tuple = (0.45, 0.47, 0.52)
     ground: tuple = (0.22, 0.21, 0.19)
     camera_relative: bool = False
+    lights: tuple = ()
+    shadow: float = 0.0
+    shadow_resolution: int = 1024
+    specular: float = 0.0
 
     def __post_init__(self):
         for name in ("direction", "key", "sky", "ground"):
-            value = getattr(self, name)
-            try:
-                v = tuple(float(x) for x in value)
-            except (TypeError, ValueError):
-                v = ()
-            if len(v) != 3 or not all(np.isfinite(v)):
-                raise InputError(f"Lighting.{name}: expected 3 finite numbers, got {value!r}")
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, _vec3(getattr(self, name), f"Lighting.{name}"))
         if not any(self.direction):
             raise InputError(f"Lighting.direction: expected a non-zero vector, got {self.direction!r}")
+        try:
+            pairs = [tuple(pair) for pair in self.lights]
+        except TypeError:
+            raise InputError(f"Lighting.lights: expected (direction, colour) pairs, got {self.lights!r}") from None
+        if len(pairs) > MAX_LIGHTS - 1:
+            raise InputError(f"Lighting.lights: at most {MAX_LIGHTS - 1} lights besides the key, got {len(pairs)}")
+        lights = []
+        for i, pair in enumerate(pairs):
+            if len(pair) != 2:
+                raise InputError(f"Lighting.lights[{i}]: expected a (direction, colour) pair, got {pair!r}")
+            d = _vec3(pair[0], f"Lighting.lights[{i}] direction")
+            if not any(d):
+                raise InputError(f"Lighting.lights[{i}]: expected a non-zero direction, got {d!r}")
+            lights.append((d, _vec3(pair[1], f"Lighting.lights[{i}] colour")))
+        object.__setattr__(self, "lights", tuple(lights))
+        if not (isinstance(self.shadow, (int, float)) and 0.0 <= float(self.shadow) <= 1.0):
+            raise InputError(f"Lighting.shadow: expected a number in [0, 1], got {self.shadow!r}")
+        if not (isinstance(self.specular, (int, float)) and 0.0 <= float(self.specular) < np.inf):
+            raise InputError(f"Lighting.specular: expected a finite number >= 0, got {self.specular!r}")
+        res = self.shadow_resolution
+        if isinstance(res, bool) or not isinstance(res, (int, np.integer)) or not 16 <= res <= 8192:
+            raise InputError(f"Lighting.shadow_resolution: expected an integer in [16, 8192], got {res!r}")
 
-    def world_direction(self, camera: Camera) -> np.ndarray:
-        """Unit vector (3,) towards the key light in world coordinates, for ``camera``."""
-        d = np.asarray(self.direction, np.float64)
+    def _to_world(self, d, camera: Camera) -> np.ndarray:
+        d = np.asarray(d, np.float64)
         if self.camera_relative:
             r, u, f = camera.axes()
             d = d[0] * r + d[1] * u - d[2] * f
         return d / np.linalg.norm(d)
+
+    def world_direction(self, camera: Camera) -> np.ndarray:
+        """Unit vector (3,) towards the key light in world coordinates, for ``camera``."""
+        return self._to_world(self.direction, camera)
+
+    def world_lights(self, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+        """Every light, key first: unit directions (L, 3) in world coordinates and colours (L, 3)."""
+        dirs = [self.world_direction(camera)] + [self._to_world(d, camera) for d, _c in self.lights]
+        cols = [self.key] + [c for _d, c in self.lights]
+        return np.array(dirs), np.array(cols, np.float64)
 
 
 @dataclass
@@ -420,12 +582,27 @@ class RenderResult:
         ``np.inf`` where ``mask`` is False.
     camera : Camera
         The camera the image was rendered with.
+    part : ndarray, shape (H, W), int16
+        Index into the rendered mesh's ``parts`` of the surface seen at each pixel centre
+        (the same samples as ``mask``); -1 where ``mask`` is False. E.g. a label image is
+        ``np.where(part >= 0, labels_of_parts[part], 0)``.
+    triangle : ndarray, shape (H, W), int32
+        Index of the triangle within that part (``gl_PrimitiveID``); -1 where empty.
+    normal : ndarray, shape (H, W, 3), float32, or None
+        World-space unit normal of the surface (flipped toward the viewer on the back of
+        double-sided parts; without normal maps); zeros where empty. Only with ``aux=True``.
+    uv : ndarray, shape (H, W, 2), float32, or None
+        Interpolated texture coordinates; zeros where empty. Only with ``aux=True``.
     """
 
     color: np.ndarray
     mask: np.ndarray
     depth: np.ndarray
     camera: Camera | None = field(default=None, repr=False)
+    part: np.ndarray | None = field(default=None, repr=False)
+    triangle: np.ndarray | None = field(default=None, repr=False)
+    normal: np.ndarray | None = field(default=None, repr=False)
+    uv: np.ndarray | None = field(default=None, repr=False)
 
     def rgb(self, background=(255, 255, 255)) -> np.ndarray:
         """``color`` composited over ``background``: (H, W, 3) uint8."""
@@ -511,7 +688,10 @@ class Renderer:
     background : sequence of 4 floats in [0, 1]
         RGBA drawn where no geometry is; alpha 0 (default) gives a transparent background.
     lighting : Lighting, optional
-        Key + hemisphere light; ``Lighting()`` when omitted.
+        Lights, shadows and ambient; ``Lighting()`` when omitted.
+    aux : bool
+        Also read back per-pixel world normals and UVs (:attr:`RenderResult.normal`,
+        :attr:`RenderResult.uv`); part and triangle indices are always returned.
 
     Raises
     ------
@@ -538,7 +718,7 @@ class Renderer:
     """
 
     def __init__(self, camera: Camera, *, samples: int = 4, background=(1.0, 1.0, 1.0, 0.0),
-                 lighting: Lighting | None = None):
+                 lighting: Lighting | None = None, aux: bool = False):
         try:
             samples = int(samples)
         except (TypeError, ValueError):
@@ -551,6 +731,7 @@ class Renderer:
         if not isinstance(lighting, Lighting):
             raise InputError(f"lighting: expected a Lighting, got {type(lighting).__name__}")
         self.lighting = lighting
+        self.aux = bool(aux)
         self._state = _get_state()
         ctx = self._state.ctx
         self.samples = 1 if samples <= 1 else int(min(samples, max(int(ctx.max_samples), 1)))
@@ -582,21 +763,21 @@ class Renderer:
             raise InputError(f"camera: image size {w}x{h} exceeds the device limit {limit}")
         t = {}
         try:
+            ids = ["dval"] + (["nrm", "uvs"] if self.aux else [])
+            for name in ids:
+                t[name] = ctx.renderbuffer((w, h), 4, dtype="f4")
+            t["depth"] = ctx.depth_renderbuffer((w, h))
             if self.samples > 1:
                 t["ms_color"] = ctx.renderbuffer((w, h), 4, samples=self.samples)
                 t["ms_depth"] = ctx.depth_renderbuffer((w, h), samples=self.samples)
                 t["color_fbo"] = ctx.framebuffer([t["ms_color"]], t["ms_depth"])
                 t["resolved"] = ctx.renderbuffer((w, h), 4)
                 t["resolve_fbo"] = ctx.framebuffer([t["resolved"]])
-                t["dval"] = ctx.renderbuffer((w, h), 1, dtype="f4")
-                t["depth"] = ctx.depth_renderbuffer((w, h))
-                t["mask_fbo"] = ctx.framebuffer([t["dval"]], t["depth"])
+                t["mask_fbo"] = ctx.framebuffer([t[k] for k in ids], t["depth"])
             else:
                 t["color"] = ctx.renderbuffer((w, h), 4)
-                t["dval"] = ctx.renderbuffer((w, h), 1, dtype="f4")
-                t["depth"] = ctx.depth_renderbuffer((w, h))
-                t["color_fbo"] = ctx.framebuffer([t["color"], t["dval"]], t["depth"])
-                t["dval_fbo"] = ctx.framebuffer([t["dval"]])
+                t["color_fbo"] = ctx.framebuffer([t["color"]] + [t[k] for k in ids], t["depth"])
+                t["dval_fbo"] = ctx.framebuffer([t[k] for k in ids])
         except Exception as exc:
             for obj in t.values():
                 obj.release()
@@ -641,24 +822,34 @@ class Renderer:
         cam = self._camera
         w, h = self._size
 
-        parts = [p for p in mesh.parts if p.n_triangles]
-        for p in parts:
+        parts = [(i, p) for i, p in enumerate(mesh.parts) if p.n_triangles]
+        for _i, p in parts:
             p.validate()
-        parts.sort(key=lambda p: p.material.alpha_mode == "BLEND")  # stable: opaque first
-        gpu = [(p, _part_gpu(state, p), _texture_gpu(state, p.material.texture)) for p in parts]
+        parts.sort(key=lambda ip: ip[1].material.alpha_mode == "BLEND")  # stable: opaque first
+        gpu = [(i, p, _part_gpu(state, p), _texture_gpu(state, p.material.texture),
+                _texture_gpu(state, p.material.normal_texture) if p.material.normal_texture is not None else None)
+               for i, p in parts]
 
-        view = _mat_bytes(cam.view_matrix())
-        proj = _mat_bytes(cam.projection_matrix())
         lt = self.lighting
+        dirs, cols = lt.world_lights(cam)
+        shadows = lt.shadow > 0 and lt.key != (0.0, 0.0, 0.0) and bool(gpu)
         shared = {
-            "u_view": view,
-            "u_proj": proj,
-            "u_light_dir": tuple(float(x) for x in lt.world_direction(cam)),
-            "u_key": tuple(float(x) for x in lt.key),
+            "u_view": _mat_bytes(cam.view_matrix()),
+            "u_proj": _mat_bytes(cam.projection_matrix()),
+            "u_n_lights": len(dirs),
+            "u_light_dirs": np.asarray(dirs, np.float32).tobytes() + bytes(12 * (MAX_LIGHTS - len(dirs))),
+            "u_light_cols": np.asarray(cols, np.float32).tobytes() + bytes(12 * (MAX_LIGHTS - len(dirs))),
             "u_sky": tuple(float(x) for x in lt.sky),
             "u_ground": tuple(float(x) for x in lt.ground),
+            "u_eye": tuple(float(x) for x in cam.position),
+            "u_specular": float(lt.specular),
             "u_tex": 0,
+            "u_ntex": 1,
         }
+        if shadows:
+            light_view, light_proj, texel = _light_matrices(mesh, dirs[0], lt.shadow_resolution)
+            shared.update(u_shadow_map=2, u_light_vp=_mat_bytes(light_proj @ light_view), u_shadow=float(lt.shadow),
+                          u_shadow_texel=1.0 / lt.shadow_resolution, u_shadow_offset=1.5 * texel)
         br, bgc, bb, ba = self.background
         ctx.front_face = "ccw"
         ctx.cull_face = "back"
@@ -667,17 +858,21 @@ class Renderer:
         ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
         prepared: set = set()
 
-        def draw(pass_: str, blend: bool):
-            for p, g, tex in gpu:
+        def draw(pass_: str, blend: bool, overrides: dict | None = None):
+            for i, p, g, tex, ntex in gpu:
                 m = p.material
                 mode = _ALPHA_MODES[m.alpha_mode]
-                key, program = state.program(pass_, mode, m.texture is not None, g.flat)
-                if key not in prepared:
+                key, program = state.program(pass_, mode, m.texture is not None, g.flat, ntex is not None,
+                                             shadows)
+                if overrides is not None:  # shadow pass: the light's matrices, not cached as prepared
+                    for name, value in overrides.items():
+                        _set(program, name, value)
+                elif key not in prepared:
                     for name, value in shared.items():
                         _set(program, name, value)
                     prepared.add(key)
                 flags = moderngl.DEPTH_TEST
-                if not m.double_sided:
+                if not m.double_sided and overrides is None:
                     flags |= moderngl.CULL_FACE
                 if blend and mode == 2:  # opaque fragments (alpha 1) need no blending
                     flags |= moderngl.BLEND
@@ -685,10 +880,23 @@ class Renderer:
                 _set(program, "u_base_color", tuple(float(x) for x in m.base_color))
                 _set(program, "u_cutoff", float(m.alpha_cutoff))
                 _set(program, "u_double_sided", int(bool(m.double_sided)))
+                _set(program, "u_part", float(i))
+                if pass_ == "shade":
+                    r4 = max(float(m.roughness), 0.02) ** 4
+                    _set(program, "u_shininess", float(min(max(2.0 / r4 - 2.0, 1.0), 4096.0)))
+                    _set(program, "u_nscale", float(m.normal_scale))
+                    if ntex is not None:
+                        ntex.use(1)
                 tex.use(0)
                 g.vao(ctx, key, program).render(moderngl.TRIANGLES)
 
         try:
+            if shadows:  # key light's depth map, alpha-tested like the mask, both faces drawn
+                smap, sfbo = state.shadow_target(lt.shadow_resolution)
+                sfbo.use()
+                sfbo.clear(depth=1.0)
+                draw("mask", False, {"u_view": _mat_bytes(light_view), "u_proj": _mat_bytes(light_proj)})
+                smap.use(2)
             # colour pass: premultiplied alpha over the premultiplied background
             fbo = t["color_fbo"]
             fbo.use()
@@ -700,15 +908,18 @@ class Renderer:
             if self.samples > 1:
                 ctx.copy_framebuffer(t["resolve_fbo"], fbo)
                 raw = t["resolve_fbo"].read(components=4)
-                # silhouette + depth pass: single-sample, no blending
+                # silhouette + ids pass: single-sample, no blending
                 mfbo = t["mask_fbo"]
                 mfbo.use()
                 mfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
                 draw("mask", False)
-                draw_d = mfbo.read(components=1, dtype="f4", attachment=0)
+                buffers, first = mfbo, 0
             else:
                 raw = fbo.read(components=4, attachment=0)
-                draw_d = fbo.read(components=1, dtype="f4", attachment=1)
+                buffers, first = fbo, 1
+            ids_raw = buffers.read(components=4, dtype="f4", attachment=first)
+            aux_raw = ([buffers.read(components=4, dtype="f4", attachment=first + k) for k in (1, 2)]
+                       if self.aux else None)
         except moderngl.Error as exc:
             raise RenderError(f"OpenGL render failed: {exc}") from None
         finally:
@@ -716,13 +927,44 @@ class Renderer:
 
         color = np.frombuffer(raw, np.uint8).reshape(h, w, 4)[::-1]
         color = _unpremultiply(color, self.background)
-        d = np.frombuffer(draw_d, np.float32).reshape(h, w)[::-1]
-        mask = d > 0
-        depth = np.where(mask, d, np.float32(np.inf)).astype(np.float32, copy=False)
-        return RenderResult(color=color, mask=mask, depth=depth, camera=cam)
+        ids = np.frombuffer(ids_raw, np.float32).reshape(h, w, 4)[::-1]
+        mask = ids[..., 3] > 0
+        depth = np.where(mask, ids[..., 0], np.float32(np.inf)).astype(np.float32, copy=False)
+        part = np.rint(ids[..., 1]).astype(np.int16) - 1
+        triangle = np.rint(ids[..., 2]).astype(np.int64).astype(np.int32) - 1
+        normal = uv = None
+        if aux_raw is not None:
+            normal = np.ascontiguousarray(np.frombuffer(aux_raw[0], np.float32).reshape(h, w, 4)[::-1, :, :3])
+            uv = np.ascontiguousarray(np.frombuffer(aux_raw[1], np.float32).reshape(h, w, 4)[::-1, :, :2])
+        return RenderResult(color=color, mask=mask, depth=depth, camera=cam, part=part, triangle=triangle,
+                            normal=normal, uv=uv)
 
     def __repr__(self) -> str:
         return f"Renderer({self._size[0]}x{self._size[1]}, samples={self.samples})"
+
+
+def _light_matrices(mesh: Mesh, direction: np.ndarray, resolution: int):
+    """Orthographic view and projection (4, 4) of a directional light enclosing ``mesh``.
+
+    Returns the two matrices and the world size of one shadow-map texel.
+    """
+    lo, hi = mesh.bounds()
+    center = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+    d = np.asarray(direction, np.float64)
+    up = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.99 else np.array([0.0, 0.0, 1.0])
+    f = -d  # the light looks along -direction
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    eye = center + d * 2.0 * radius
+    view = np.eye(4)
+    view[0, :3], view[1, :3], view[2, :3] = r, u, -f
+    view[:3, 3] = -view[:3, :3] @ eye
+    near, far = radius, 3.0 * radius
+    proj = np.diag([1.0 / radius, 1.0 / radius, -2.0 / (far - near), 1.0])
+    proj[2, 3] = -(far + near) / (far - near)
+    return view, proj, 2.0 * radius / resolution
 
 
 def _unpremultiply(premult: np.ndarray, background) -> np.ndarray:

@@ -25,6 +25,11 @@ class Material:
     alpha_cutoff : float
     double_sided : bool
     roughness, metallic : float
+    normal_texture : ndarray, shape (H, W, 4), uint8, optional
+        Tangent-space normal map (glTF ``normalTexture``: RGB = (n + 1) / 2, +X right, +Y up
+        in the texture, +Z out of the surface), sampled with the same UVs as ``texture``.
+    normal_scale : float
+        Scales the normal map's X and Y (glTF ``normalTexture.scale``).
     """
 
     name: str = "material"
@@ -35,6 +40,8 @@ class Material:
     double_sided: bool = False
     roughness: float = 0.9
     metallic: float = 0.0
+    normal_texture: np.ndarray | None = None
+    normal_scale: float = 1.0
 
     def validate(self) -> None:
         if self.alpha_mode not in ("OPAQUE", "MASK", "BLEND"):
@@ -43,6 +50,14 @@ class Material:
             t = self.texture
             if t.ndim != 3 or t.shape[2] != 4 or t.dtype != np.uint8:
                 raise InputError(f"Material.texture: expected (H, W, 4) uint8, got {t.shape} {t.dtype}")
+        if self.normal_texture is not None:
+            t = self.normal_texture
+            if t.ndim != 3 or t.shape[2] != 4 or t.dtype != np.uint8:
+                raise InputError(f"Material.normal_texture: expected (H, W, 4) uint8, got {t.shape} {t.dtype}")
+        if not np.isfinite(self.normal_scale):
+            raise InputError(f"Material.normal_scale: expected a finite number, got {self.normal_scale!r}")
+        if not 0.0 <= self.roughness <= 1.0:
+            raise InputError(f"Material.roughness: expected a number in [0, 1], got {self.roughness!r}")
 
 
 @dataclass
@@ -127,9 +142,12 @@ class Mesh:
                 arrays[f"{i}_{k}"] = getattr(p, k)
             m = p.material
             arrays[f"{i}_material"] = np.array(repr((p.name, m.name, tuple(m.base_color), m.alpha_mode,
-                                                      m.alpha_cutoff, m.double_sided, m.roughness, m.metallic)))
+                                                      m.alpha_cutoff, m.double_sided, m.roughness, m.metallic,
+                                                      m.normal_scale)))
             if m.texture is not None:
                 arrays[f"{i}_texture"] = m.texture
+            if m.normal_texture is not None:
+                arrays[f"{i}_normal_texture"] = m.normal_texture
         return save_npz(path, "Mesh", n_parts=np.array(len(self.parts)), **arrays)
 
     @classmethod
@@ -139,7 +157,8 @@ class Mesh:
         d = load_npz(path, "Mesh")
         parts = []
         for i in range(int(d["n_parts"])):
-            pname, mname, bc, am, ac, ds, ro, me = ast.literal_eval(str(d[f"{i}_material"]))
-            mat = Material(mname, bc, d.get(f"{i}_texture"), am, ac, ds, ro, me)
+            pname, mname, bc, am, ac, ds, ro, me, *rest = ast.literal_eval(str(d[f"{i}_material"]))
+            mat = Material(mname, bc, d.get(f"{i}_texture"), am, ac, ds, ro, me, d.get(f"{i}_normal_texture"),
+                           *rest)
             parts.append(MeshPart(*(d[f"{i}_{k}"] for k in ("positions", "normals", "uvs", "colors", "indices")), mat, pname))
         return cls(parts)

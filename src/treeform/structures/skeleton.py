@@ -154,11 +154,15 @@ class TreeSkeleton:
         except KeyError as exc:
             raise InputError(f"skeleton JSON lacks the field {exc}") from None
 
+    def to_json(self) -> str:
+        """The skeleton JSON text (compact, sorted keys): same skeleton -> same bytes."""
+        return json.dumps(self.to_dict(), separators=(",", ":"), sort_keys=True)
+
     def save(self, path) -> Path:
         """Write skeleton JSON atomically."""
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), separators=(",", ":"), sort_keys=True))
+        tmp.write_text(self.to_json())
         os.replace(tmp, path)
         return path
 

@@ -1,7 +1,7 @@
 """Species preset -> leafy 3D tree by phenomenological growth (seed 003 §4.3, Appendix Tables 2–3).
 
 Each stage is one call into a domain folder: :func:`treeform.growth.phenomenological.grow`
-(skeleton), :func:`treeform.growth.leaves.attach_leaves` (leaf clusters on the twigs),
+(skeleton), :func:`treeform.growth.leaves.twig_foliage` (leaf clusters on the twigs),
 :func:`treeform.geometry.tree_mesh` (bark tubes + leaf cards under a triangle budget),
 :class:`treeform.render.Renderer` (previews) and :mod:`treeform.io` (files, written
 atomically: a staging folder, then renames).
@@ -27,8 +27,8 @@ from treeform.structures import Camera, Foliage, Mesh, TreeSkeleton
 if TYPE_CHECKING:  # pragma: no cover
     from treeform.growth.phenomenological import GrowthParameters
 
-__all__ = ["GrowResult", "OUTPUT_FILES", "STAGES", "frame_camera", "grow_tree", "leaf_positions", "shape_metrics",
-           "preview_lighting", "twig_nodes", "write_staged"]
+__all__ = ["GrowResult", "OUTPUT_FILES", "STAGES", "frame_camera", "grow_tree", "shape_metrics", "preview_lighting",
+           "write_staged"]
 
 STAGES = ("grow", "leaves", "mesh", "render", "export")
 """Stage names reported through ``progress(stage, event, seconds)``, in order."""
@@ -95,67 +95,6 @@ def shape_metrics(skeleton: TreeSkeleton) -> dict:
         "slenderness": round(height / width, 4),
         "tip_direction_y": round(float(d[:, 1].mean()) if len(tips) else 0.0, 4),
     }
-
-
-def twig_nodes(skeleton: TreeSkeleton, twig_tips: int = 4) -> np.ndarray:
-    """Indices of the twig nodes: those carrying at most ``twig_tips`` tips in their subtree (never the root).
-
-    Returns
-    -------
-    ndarray of int64, shape (K,)
-    """
-    tips = np.zeros(skeleton.n_nodes)
-    tips[skeleton.tips()] = 1
-    for i in range(skeleton.n_nodes - 1, 0, -1):
-        tips[skeleton.parent[i]] += tips[i]
-    twigs = np.flatnonzero(tips <= twig_tips)
-    return twigs[twigs > 0]
-
-
-def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: int = 4, seed=None) -> np.ndarray:
-    """``n`` leaf-cluster centres scattered around the twigs (seed 003 Appendix: leaves on twigs).
-
-    Each cluster picks a twig node (evenly: every twig gets ``n // twigs`` or one more), a
-    random point on the internode leading to it, and a normal offset of σ = ``size / 3``.
-
-    Parameters
-    ----------
-    skeleton : TreeSkeleton
-    n : int
-    size : float
-        Leaf-cluster card size in metres.
-    twig_tips : int
-    seed : int or numpy.random.Generator
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-    """
-    rng = as_rng(seed)
-    twigs = twig_nodes(skeleton, twig_tips)
-    if n <= 0 or len(twigs) == 0:
-        return np.zeros((0, 3))
-    reps = np.full(len(twigs), n // len(twigs))
-    reps[rng.permutation(len(twigs))[: n % len(twigs)]] += 1
-    node = np.repeat(twigs, reps)
-    a = skeleton.positions[skeleton.parent[node]]
-    b = skeleton.positions[node]
-    t = rng.uniform(0.0, 1.0, (len(node), 1))
-    pts = a + t * (b - a) + rng.normal(0.0, size / 3.0, (len(node), 3))
-    pts[:, 1] = np.maximum(pts[:, 1], size / 2)
-    return pts
-
-
-def _leaf_colors(foliage: Foliage, base_rgb, center: np.ndarray, radius: float, rng) -> np.ndarray:
-    """Species green with per-leaf brightness / hue variation, darker deep inside the crown."""
-    m = len(foliage)
-    base = np.asarray(base_rgb, np.float32)
-    bright = rng.uniform(0.82, 1.18, (m, 1)).astype(np.float32)
-    hue = rng.normal(0.0, 0.035, (m, 3)).astype(np.float32)
-    hue[:, 1] *= 0.5
-    depth = np.linalg.norm(foliage.positions - center, axis=1) / max(radius, 1e-6)
-    shade = (0.72 + 0.28 * np.clip(depth, 0.0, 1.0)).astype(np.float32)[:, None]
-    return np.clip((base + hue) * bright * shade, 0.0, 1.0)
 
 
 def frame_camera(lo, hi, *, size: int, fov_y: float, margin: float = 1.06) -> Camera:
@@ -289,21 +228,11 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
             skeleton = bimodal_grow(params, rbv, mask=mask, seed=cfg.seed)
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
-        from treeform.growth.leaves import attach_leaves
+        from treeform.growth.leaves import twig_foliage
 
-        size = cfg.leaf_size or look.leaf_size
-        n_twigs = len(twig_nodes(skeleton, cfg.twig_tips))
-        n_leaves = cfg.leaves if cfg.leaves is not None else int(round(cfg.leaves_per_twig * n_twigs))
-        pts = leaf_positions(skeleton, n_leaves, size=size, twig_tips=cfg.twig_tips, seed=rng)
-        if len(pts):
-            lo, hi = pts.min(0), pts.max(0)
-            center = 0.5 * (lo + hi)
-            foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=cfg.twig_tips, seed=rng)
-            radius = 0.5 * float(np.linalg.norm(hi - lo))
-            foliage = Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size,
-                              _leaf_colors(foliage, look.leaf_color, center, radius, rng), foliage.node)
-        else:
-            foliage = Foliage.empty()
+        foliage = twig_foliage(skeleton, leaf_color=look.leaf_color, size=cfg.leaf_size or look.leaf_size,
+                               leaves=cfg.leaves, leaves_per_twig=cfg.leaves_per_twig, twig_tips=cfg.twig_tips,
+                               seed=rng)
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, leaf_texture, tree_mesh
 
@@ -314,7 +243,7 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         from treeform.report import compose_strip
 
         pts_all = np.concatenate([skeleton.positions, foliage.positions]) if len(foliage) else skeleton.positions
-        pad = (size if len(foliage) else 0.0) + float(skeleton.radius.max())
+        pad = ((cfg.leaf_size or look.leaf_size) if len(foliage) else 0.0) + float(skeleton.radius.max())
         cam = frame_camera(pts_all.min(0) - pad, pts_all.max(0) + pad, size=cfg.render_size, fov_y=cfg.fov_y)
         renders = render_views(mesh, cam, views=("front", "side", "top"), lighting=preview_lighting())
         preview = compose_strip([to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])

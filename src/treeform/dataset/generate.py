@@ -1,0 +1,313 @@
+"""Generate a synthetic dataset on Dask distributed: resumable shards, retries, a failures list.
+
+:func:`generate_dataset` splits ``n`` samples into shards of ``shard_size``, skips shards a
+previous run finished (listed in the manifest, file present with the recorded size), and
+runs one Dask task per sample on a :class:`distributed.LocalCluster` (``workers``
+processes, one thread each) or on an existing scheduler (``scheduler="tcp://host:port"``,
+workers started with ``dask worker`` in an environment where treeform is installed). A task
+that raises is retried once by Dask; if it fails again the sample is recorded in
+``failures.json`` and left out of its shard; the run goes on. A shard is written (atomically)
+as soon as all its samples are resolved, then the manifest is updated, so an interrupted
+run loses at most the shards in flight.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from treeform._shared.errors import InputError, OutputError, TreeformError
+from treeform.dataset.storage import (
+    FORMAT,
+    encode_sample,
+    read_manifest,
+    shard_name,
+    write_manifest,
+    write_shard,
+)
+from treeform.dataset.synthetic import SampleOptions, make_sample
+
+__all__ = ["GenerateResult", "generate_dataset", "parse_species", "sample_members"]
+
+log = logging.getLogger(__name__)
+
+WORKER_ENV = {"LP_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""Environment of LocalCluster workers: one rasterizer / BLAS thread each (the workers are the parallelism)."""
+
+
+@dataclass
+class GenerateResult:
+    """What a :func:`generate_dataset` run did."""
+
+    out: Path
+    n: int
+    generated: int = 0
+    """Samples made (and stored) by this run."""
+    failed: list = field(default_factory=list)
+    """Indices that failed twice in this run."""
+    shards_written: list = field(default_factory=list)
+    shards_skipped: list = field(default_factory=list)
+    """Shards a previous run had finished."""
+    seconds: float = 0.0
+    workers: int = 0
+
+    @property
+    def samples_per_second(self) -> float:
+        return self.generated / self.seconds if self.seconds > 0 else 0.0
+
+
+def parse_species(species) -> tuple:
+    """``"all"``, ``"oak,pine"`` or a sequence of names -> tuple of preset names (checked)."""
+    from treeform.growth.species import SPECIES
+
+    if species is None or (isinstance(species, str) and species.strip().lower() in ("", "all")):
+        return SPECIES
+    names = [s.strip() for s in species.split(",")] if isinstance(species, str) else [str(s) for s in species]
+    names = [s for s in names if s]
+    unknown = [s for s in names if s not in SPECIES]
+    if unknown or not names:
+        raise InputError(f"species: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
+                         f"known: all, {', '.join(SPECIES)}")
+    return tuple(dict.fromkeys(names))
+
+
+@functools.lru_cache(maxsize=4)
+def _pool(folder, photo_fraction: float):
+    from treeform.dataset.backgrounds import BackgroundPool
+
+    return BackgroundPool(folder, photo_fraction=photo_fraction)
+
+
+def sample_members(seed: int, index: int, options: dict, backgrounds: str | None = None,
+                   photo_fraction: float = 0.5) -> dict:
+    """Make and encode one sample: ``{member name: bytes}`` (the Dask task; also for checks).
+
+    Parameters
+    ----------
+    seed, index : int
+    options : dict
+        :class:`SampleOptions` fields.
+    backgrounds : str, optional
+        Folder of background photos.
+    photo_fraction : float
+    """
+    opts = SampleOptions(**{**options, "species": tuple(options.get("species", ()))})
+    return encode_sample(make_sample(seed, index, opts, backgrounds=_pool(backgrounds, photo_fraction)))
+
+
+def _check_int(value, name: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
+def _client(workers: int | None, scheduler: str | None):
+    """A distributed Client (and the LocalCluster it owns, or None)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=logging.CRITICAL, env=dict(WORKER_ENV))  # failures: our own log line
+    return Client(cluster), cluster
+
+
+def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: int | None = None,
+                     scheduler: str | None = None, seed: int = 0, shard_size: int = 1000, mesh: bool = False,
+                     backgrounds=None, photo_fraction: float = 0.5, supersample: int = 2, lod: str = "medium",
+                     progress=None) -> GenerateResult:
+    """Generate (or finish) a synthetic dataset of grown, rendered trees (seed 003 §4.2.1).
+
+    Parameters
+    ----------
+    out : path
+        Dataset directory (created). Rerunning with the same options skips finished shards;
+        a larger ``n`` extends the dataset.
+    n : int
+        Number of samples (indices 0 .. n-1).
+    size : int
+        Image edge in pixels.
+    species : "all", comma-separated names or a sequence
+    workers : int, optional
+        LocalCluster worker processes (default: the machine's cores). Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler, e.g. ``"tcp://127.0.0.1:8786"``.
+    seed : int
+        Global seed: sample i depends only on (seed, i) and the options.
+    shard_size : int
+        Samples per tar shard.
+    mesh : bool
+        Also store each tree's GLB.
+    backgrounds : path, optional
+        Folder of the user's photos, used for ``photo_fraction`` of the samples.
+    supersample : int
+        Render at this multiple of ``size`` (anti-aliasing; 1 = fastest).
+    lod : str
+        Mesh triangle budget (see :data:`treeform.geometry.LOD_PRESETS`).
+    progress : callable, optional
+        ``progress(done, total)`` after every resolved sample of this run.
+
+    Returns
+    -------
+    GenerateResult
+
+    Raises
+    ------
+    InputError
+        Bad options, an unreachable scheduler, or ``out`` holding a dataset made with other
+        options (seed, size, species, shard size, ...).
+    OutputError
+        ``out`` cannot be written.
+    """
+    from treeform.io.outputs import check_out_dir
+
+    n = _check_int(n, "n", 1, 100_000_000)
+    shard_size = _check_int(shard_size, "shard_size", 1, 1_000_000)
+    seed = _check_int(seed, "seed", 0, 2**63 - 1)
+    if workers is not None:
+        workers = _check_int(workers, "workers", 1, 1024)
+    if workers is not None and scheduler is not None:
+        raise InputError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+    if scheduler is not None and "://" not in str(scheduler):
+        raise InputError(f"--scheduler: expected an address like tcp://host:8786, got {scheduler!r}")
+    names = parse_species(species)
+    opts = SampleOptions(size=size, species=names, supersample=supersample, lod=lod, mesh=bool(mesh)).validate()
+    if backgrounds is not None:
+        backgrounds = str(Path(backgrounds).resolve())
+    _pool(backgrounds, float(photo_fraction))  # checks the folder and the fraction up front
+    out = check_out_dir(out)
+    try:
+        out.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"--out {out}: cannot create ({exc.strerror or exc})") from None
+
+    options = {"size": opts.size, "species": list(opts.species), "supersample": opts.supersample, "lod": opts.lod,
+               "mesh": opts.mesh}
+    identity = {"format": FORMAT, "seed": seed, "shard_size": shard_size, "options": options,
+                "backgrounds": backgrounds, "photo_fraction": float(photo_fraction)}
+    manifest = read_manifest(out)
+    if manifest is not None:
+        theirs = {k: manifest.get(k) for k in identity}
+        if theirs != identity:
+            diff = ", ".join(k for k in identity if theirs[k] != identity[k])
+            raise InputError(f"{out} holds a dataset made with other settings ({diff}); use another --out")
+    else:
+        from treeform import __version__
+        from treeform.growth.species import SPECIES
+
+        manifest = {**identity, "species_names": list(SPECIES), "treeform": __version__, "shards": {},
+                    "labels": {"background": 0, "foliage": 1, "branch": 2}}
+    manifest["n"] = max(n, int(manifest.get("n", 0)))
+    failures = read_failures(out)
+
+    res = GenerateResult(out=out, n=n)
+    pending: dict[str, dict] = {}
+    for k in range(math.ceil(n / shard_size)):
+        first, count = k * shard_size, min(shard_size, n - k * shard_size)
+        name = shard_name(k)
+        done = manifest["shards"].get(name)
+        if (done and done["first"] == first and done["count"] == count and (out / name).exists()
+                and (out / name).stat().st_size == done["bytes"]):
+            res.shards_skipped.append(name)
+        else:
+            pending[name] = {"first": first, "count": count, "results": {}, "failed": []}
+    if not pending:
+        return res
+
+    total = sum(s["count"] for s in pending.values())
+    t0 = time.perf_counter()
+    client, cluster = _client(workers or os.cpu_count() or 1, scheduler)
+    try:
+        res.workers = len(client.scheduler_info().get("workers", {}))
+        _run(client, sample_members, pending, seed, options, backgrounds, float(photo_fraction), out, manifest,
+             failures, res, total, progress)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    res.seconds = time.perf_counter() - t0
+    res.failed.sort()
+    return res
+
+
+def read_failures(directory) -> dict:
+    """``{index: {"index", "error", "attempts"}}`` from a dataset's ``failures.json`` (empty if none)."""
+    import json
+
+    path = Path(directory) / "failures.json"
+    if not path.exists():
+        return {}
+    try:
+        return {int(f["index"]): f for f in json.loads(path.read_text())}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{path}: not a readable failures list ({exc})") from None
+
+
+def _run(client, task, pending, seed, options, backgrounds, photo_fraction, out, manifest, failures, res, total,
+         progress):
+    """Run ``task(seed, index, options, backgrounds, photo_fraction) -> members`` for every pending
+    index (a sliding window of futures, one Dask retry each) and write each shard when it is resolved."""
+    from distributed import as_completed
+
+    by_index = {}
+    for name, shard in pending.items():
+        for i in range(shard["first"], shard["first"] + shard["count"]):
+            by_index[i] = name
+    queue = iter(sorted(by_index))
+    window = max(32, 8 * max(res.workers, 1))
+
+    def submit(i):
+        return client.submit(task, seed, i, options, backgrounds, photo_fraction, key=f"sample-{seed}-{i}",
+                             retries=1, pure=False)
+
+    futures = {}
+    for i in queue:
+        futures[submit(i)] = i
+        if len(futures) >= window:
+            break
+    done = 0
+    ac = as_completed(list(futures))
+    for fut in ac:
+        i = futures.pop(fut)
+        shard = pending[by_index[i]]
+        if fut.status == "finished":
+            shard["results"][i] = fut.result()
+            failures.pop(i, None)
+        else:
+            exc = fut.exception()
+            msg = f"{type(exc).__name__}: {exc}" if not isinstance(exc, TreeformError) else str(exc)
+            log.warning("sample %d failed twice: %s", i, msg)
+            shard["failed"].append(i)
+            failures[i] = {"index": i, "error": msg, "attempts": 2}
+            res.failed.append(i)
+        fut.release()
+        done += 1
+        if progress is not None:
+            progress(done, total)
+        if len(shard["results"]) + len(shard["failed"]) == shard["count"]:
+            _finish_shard(by_index[i], shard, out, manifest, failures, res)
+        nxt = next(queue, None)
+        if nxt is not None:
+            f = submit(nxt)
+            futures[f] = nxt
+            ac.add(f)
+
+
+def _finish_shard(name, shard, out, manifest, failures, res):
+    samples = [shard["results"][i] for i in sorted(shard["results"])]
+    facts = write_shard(out / name, samples)
+    res.generated += len(samples)
+    res.shards_written.append(name)
+    manifest["shards"][name] = {"first": shard["first"], "count": shard["count"], "samples": len(samples),
+                                "failed": sorted(shard["failed"]), **facts}
+    write_manifest(out, [failures[k] for k in sorted(failures)], "failures.json")
+    write_manifest(out, manifest)
+    shard["results"].clear()

@@ -1,0 +1,181 @@
+"""Sharded storage of synthetic samples: deterministic tar shards + a JSON manifest.
+
+Layout of a dataset directory::
+
+    manifest.json        seed, options, shard size, the finished shards (name, first index,
+                         count, samples, bytes, SHA-256), species names
+    failures.json        samples that failed twice: index, error, attempts
+    shard-00000.tar      samples 0 .. shard_size-1, WebDataset-style members per sample:
+        00000000.image.png     RGB image (S, S, 3)
+        00000000.mask.png      labels (S, S): 0 background, 1 foliage, 2 branch
+        00000000.json          species, species_id, rbv (levels 1-5), rbv_height, rbv_radius,
+                               params, meta (camera, lights, materials, background)
+        00000000.skeleton.json the branch graph (TreeSkeleton JSON)
+        00000000.glb           the mesh (only with ``mesh=True``)
+
+Tar headers carry no time, owner or permissions that vary, and PNGs are written with fixed
+settings, so a shard's bytes depend only on its samples: regenerating a sample from
+(seed, index) gives byte-identical members.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tarfile
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError, OutputError
+
+__all__ = ["MEMBER_SUFFIXES", "decode_sample", "encode_sample", "read_manifest", "read_shard", "shard_name",
+           "write_manifest", "write_shard", "FORMAT"]
+
+FORMAT = "treeform-synthetic-trees/1"
+MEMBER_SUFFIXES = ("image.png", "mask.png", "json", "skeleton.json", "glb")
+
+
+def shard_name(k: int) -> str:
+    """File name of shard ``k``: ``shard-00000.tar``."""
+    return f"shard-{int(k):05d}.tar"
+
+
+def _png(array: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(array)).save(buf, format="PNG", compress_level=6, optimize=False)
+    return buf.getvalue()
+
+
+def _json(obj) -> bytes:
+    return json.dumps(obj, separators=(",", ":"), sort_keys=True).encode()
+
+
+def encode_sample(sample) -> dict:
+    """A :class:`~treeform.dataset.synthetic.Sample` as tar members ``{name: bytes}`` (deterministic)."""
+    key = f"{sample.index:08d}"
+    record = {"index": sample.index, "species": sample.species, "species_id": sample.species_id,
+              "rbv": [np.round(r, 6).tolist() for r in sample.rbv], "rbv_height": round(sample.rbv_height, 6),
+              "rbv_radius": round(sample.rbv_radius, 6), "params": sample.params, "meta": sample.meta}
+    out = {f"{key}.image.png": _png(sample.image), f"{key}.mask.png": _png(sample.mask),
+           f"{key}.json": _json(record), f"{key}.skeleton.json": sample.skeleton.to_json().encode()}
+    if sample.store_mesh:
+        import tempfile
+
+        from treeform.io import write_glb
+
+        with tempfile.TemporaryDirectory() as tmp:
+            path = write_glb(sample.mesh, Path(tmp) / "tree.glb")
+            out[f"{key}.glb"] = path.read_bytes()
+    return out
+
+
+def decode_sample(members: dict) -> dict:
+    """Tar members of one sample -> ``{"image", "mask", "rbv", "species_id", "species", "record", ...}``.
+
+    ``rbv`` is a list of the five level arrays; ``skeleton`` a TreeSkeleton when present.
+    """
+    from PIL import Image
+
+    out = {}
+    for name, data in members.items():
+        suffix = name.split(".", 1)[1]
+        if suffix == "image.png":
+            out["image"] = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+        elif suffix == "mask.png":
+            out["mask"] = np.asarray(Image.open(io.BytesIO(data)))
+        elif suffix == "json":
+            rec = json.loads(data)
+            out["record"] = rec
+            out["rbv"] = [np.asarray(r, np.float32) for r in rec["rbv"]]
+            out["species_id"] = int(rec["species_id"])
+            out["species"] = rec["species"]
+            out["index"] = int(rec["index"])
+        elif suffix == "skeleton.json":
+            from treeform.structures import TreeSkeleton
+
+            out["skeleton"] = TreeSkeleton.from_dict(json.loads(data))
+        elif suffix == "glb":
+            out["glb"] = data
+    return out
+
+
+def write_shard(path, samples: list) -> dict:
+    """Write encoded samples (dicts of members, in index order) to a tar atomically; its facts.
+
+    Returns
+    -------
+    dict
+        ``{"bytes": int, "sha256": str}``.
+    """
+    import hashlib
+
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            with tarfile.open(fileobj=fh, mode="w", format=tarfile.USTAR_FORMAT) as tar:
+                for members in samples:
+                    for name in sorted(members):
+                        data = members[name]
+                        info = tarfile.TarInfo(name)
+                        info.size = len(data)
+                        info.mtime = 0
+                        info.mode = 0o644
+                        info.uid = info.gid = 0
+                        info.uname = info.gname = ""
+                        tar.addfile(info, io.BytesIO(data))
+        digest = hashlib.sha256(tmp.read_bytes()).hexdigest()
+        size = tmp.stat().st_size
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise OutputError(f"{path}: cannot write the shard ({exc.strerror or exc})") from None
+    return {"bytes": size, "sha256": digest}
+
+
+def read_shard(path) -> list[dict]:
+    """The samples of a shard as lists of members: ``[{name: bytes}, ...]`` in file order."""
+    samples: dict[str, dict] = {}
+    try:
+        with tarfile.open(path, mode="r") as tar:
+            for info in tar:
+                if not info.isfile():
+                    continue
+                key = info.name.split(".", 1)[0]
+                samples.setdefault(key, {})[info.name] = tar.extractfile(info).read()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such shard") from None
+    except (tarfile.TarError, OSError) as exc:
+        raise InputError(f"{path}: not a readable shard ({exc})") from None
+    return list(samples.values())
+
+
+def read_manifest(directory) -> dict | None:
+    """The manifest of a dataset directory, or None when there is none yet."""
+    path = Path(directory) / "manifest.json"
+    if not path.exists():
+        return None
+    try:
+        m = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a readable manifest ({exc})") from None
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        raise InputError(f"{path}: not a treeform synthetic dataset manifest")
+    return m
+
+
+def write_manifest(directory, manifest: dict, name: str = "manifest.json") -> Path:
+    """Write ``manifest`` (or another JSON file of the dataset) atomically."""
+    path = Path(directory) / name
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise OutputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    return path
