@@ -27,3 +27,4 @@ def test_bad_arguments_fail_cleanly(tmp_path):
     assert_clean_failure(unreachable)
     assert "cannot connect" in unreachable.stderr
     assert_clean_failure(cli("dataset", "show", tmp_path))
+
