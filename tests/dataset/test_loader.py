@@ -65,3 +65,6 @@ def test_torch_dataset(data_dir):
     image, mask, rbv, species = tds[0]
     assert image.shape == (3, 32, 32) and image.dtype == torch.float32 and mask.dtype == torch.int64
     assert len(rbv) == 5 and species.ndim == 0
+    loader = torch.utils.data.DataLoader(tds, batch_size=3, num_workers=2, multiprocessing_context="spawn")
+    images, masks, rbvs, species = next(iter(loader))
+    assert images.shape == (3, 3, 32, 32) and rbvs[4].shape == (3, 16, 16) and species.shape == (3,)

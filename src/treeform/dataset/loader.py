@@ -18,7 +18,7 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform.dataset.storage import decode_sample, read_manifest
 
-__all__ = ["SyntheticDataset", "torch_dataset"]
+__all__ = ["SyntheticDataset", "TorchSynthetic", "torch_dataset"]
 
 
 class SyntheticDataset:
@@ -124,41 +124,51 @@ class SyntheticDataset:
             }
 
 
-def torch_dataset(directory, *, augment=None, seed: int = 0):
-    """A ``torch.utils.data.Dataset`` over a generated dataset (needs torch; optional).
+class TorchSynthetic:
+    """Map-style dataset for ``torch.utils.data.DataLoader`` (picklable: works with worker processes).
 
     Items are ``(image, mask, rbv, species)``: image float32 (3, T, T) in [0, 1], mask int64
     (T, T), rbv a tuple of five float32 tensors (n, n), species an int64 scalar. With
     ``augment``, item ``i`` of epoch ``e`` uses the generator ``default_rng([seed, e, i])``;
-    call ``set_epoch(e)`` to change it.
+    call :meth:`set_epoch` to change it.
+    """
+
+    def __init__(self, directory, *, augment=None, seed: int = 0):
+        self.base = SyntheticDataset(directory)
+        self.augment = augment
+        self.seed = int(seed)
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def __len__(self) -> int:
+        return len(self.base)
+
+    def __getitem__(self, i):
+        import torch
+
+        s = self.base[i]
+        image, mask, rbv = s["image"], s["mask"], s["rbv"]
+        if self.augment is not None:
+            a = self.augment(image, mask, rbv, rng=np.random.default_rng([self.seed, self.epoch, int(i)]))
+            image, mask, rbv = a["image"], a["mask"], a["rbv"]
+        return (torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1))).float() / 255.0,
+                torch.from_numpy(mask.astype(np.int64)),
+                tuple(torch.from_numpy(np.asarray(r, np.float32)) for r in rbv),
+                torch.tensor(s["species_id"], dtype=torch.int64))
+
+
+def torch_dataset(directory, *, augment=None, seed: int = 0) -> TorchSynthetic:
+    """A :class:`TorchSynthetic` over a generated dataset, for ``torch.utils.data.DataLoader`` (needs torch).
+
+    Raises
+    ------
+    InputError
+        PyTorch is not installed, or ``directory`` is not a dataset.
     """
     try:
-        import torch
-        from torch.utils.data import Dataset
+        import torch  # noqa: F401
     except ImportError:
         raise InputError("torch_dataset needs PyTorch: pip install torch") from None
-
-    base = SyntheticDataset(directory)
-
-    class _TorchSynthetic(Dataset):
-        def __init__(self):
-            self.epoch = 0
-
-        def set_epoch(self, epoch: int) -> None:
-            self.epoch = int(epoch)
-
-        def __len__(self):
-            return len(base)
-
-        def __getitem__(self, i):
-            s = base[i]
-            image, mask, rbv = s["image"], s["mask"], s["rbv"]
-            if augment is not None:
-                a = augment(image, mask, rbv, rng=np.random.default_rng([seed, self.epoch, int(i)]))
-                image, mask, rbv = a["image"], a["mask"], a["rbv"]
-            return (torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1))).float() / 255.0,
-                    torch.from_numpy(mask.astype(np.int64)),
-                    tuple(torch.from_numpy(np.asarray(r, np.float32)) for r in rbv),
-                    torch.tensor(s["species_id"], dtype=torch.int64))
-
-    return _TorchSynthetic()
+    return TorchSynthetic(directory, augment=augment, seed=seed)
