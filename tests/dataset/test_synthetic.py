@@ -77,3 +77,16 @@ def test_species_option_and_errors(gl):
         SampleOptions(size=8).validate()
     with pytest.raises(InputError, match="supersample"):
         SampleOptions(supersample=9).validate()
+
+
+def test_mesh_is_stored_on_request(gl, tmp_path):
+    from treeform.io import read_glb_counts
+
+    s = make_sample(7, 0, SampleOptions(size=48, lod="low", supersample=1, mesh=True))
+    members = encode_sample(s)
+    glb = [v for k, v in members.items() if k.endswith(".glb")]
+    assert len(glb) == 1
+    (tmp_path / "t.glb").write_bytes(glb[0])
+    assert read_glb_counts(tmp_path / "t.glb")[1] == s.mesh.n_triangles
+    assert not any(k.endswith(".glb") for k in encode_sample(make_sample(7, 0, SampleOptions(size=48, lod="low",
+                                                                                            supersample=1))))
