@@ -34,6 +34,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_variations.py
 	$(PY) benchmarks/bench_bimodal.py
 	$(PY) benchmarks/bench_dataset.py
+	$(PY) benchmarks/bench_cloud.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -4,6 +4,7 @@
 - :func:`leaf_cards`, :func:`leaf_texture` — alpha-masked leaf quads and their texture.
 - :func:`tree_mesh`, :data:`LOD_PRESETS` — both parts under a triangle budget.
 - :func:`normal_map_from_height`, :func:`texture_height` — tangent-space normal maps.
+- :mod:`treeform.geometry.billboard_cloud` — superpixel billboards, atlas, placement, cloud mesh (seed 000 §6).
 """
 
 from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage

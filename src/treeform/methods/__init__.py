@@ -18,7 +18,7 @@ METHODS = {
     ),
     "variations": (
         "New RGBA tree images from a library of RGBA trees (contour synthesis + mean value coordinates); "
-        "photo -> RGBA billboard by alpha matting",
+        "photo -> RGBA billboard by alpha matting; picture -> billboard cloud (alpha-tested GLB)",
         "Argudo et al., Image-based tree variations, Computer Graphics Forum 39(1) (2020)",
         "treeform.methods.variations.pipeline:vary",
     ),

@@ -1,8 +1,9 @@
-"""Metrics: reprojection error (seed 004 eq. 3), IoU, crown proportions."""
+"""Metrics: reprojection error (seed 004 eq. 3), IoU, crown proportions, PSNR and SSIM."""
 
+from treeform.metrics.image import psnr, ssim
 from treeform.metrics.reprojection import extent_ratio, iou, reprojection_error
 
-__all__ = ["reprojection_error", "iou", "extent_ratio"]
+__all__ = ["reprojection_error", "iou", "extent_ratio", "psnr", "ssim"]
 
 # tree-form metrics of seed 003 §6
 from treeform.metrics.treeform_metrics import (  # noqa: E402

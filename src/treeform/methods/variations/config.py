@@ -97,3 +97,91 @@ class VariationsConfig:
             if name in d:
                 d[name] = tuple(d[name])
         return cls(**d).validate()
+
+
+@dataclass
+class CloudConfig:
+    """Every knob of :func:`treeform.methods.variations.cloud.cloud` (seed 000 §6)."""
+
+    seed: int = 0
+    """Random seed: same picture + seed -> byte-identical GLB and JSON."""
+    size: int = 1024
+    """Side of the normalised picture the cloud is made of, pixels (§4.1: 1024)."""
+    segments: int = 256
+    """Approximate number of SLIC superpixels of the crown (§6: 256)."""
+    compactness: float = 0.35
+    """SLIC compactness on colours in [0, 1] (§6: 0.35; lower is more fractal)."""
+    slic_side: int = 512
+    """Longest side SLIC runs at (labels are scaled back to ``size``)."""
+    straightness: float = 0.05
+    """Douglas-Peucker tolerance that defines a straight superpixel edge, in superpixel sides."""
+    min_edge: float = 0.3
+    """Shortest straight edge that is replaced, in superpixel sides."""
+    endpoint_tolerance: float = 0.1
+    """Mismatch allowed between the endpoints of an edge and of its silhouette curve, as a
+    fraction of the edge length (§6's first constraint)."""
+    max_bulge: float = 0.5
+    """Largest distance of a silhouette curve from its edge, in superpixel sides."""
+    overlap: int = 2
+    """Pixels by which every billboard's footprint grows into its neighbours' (beyond the
+    paper: no cracks between billboards in minified views)."""
+    depth_ratio: float = 1.0
+    """Depth / width of the crown envelope that gives the billboards' depths (1: round)."""
+    push: float = 0.5
+    """How deep the darkest front billboard is pushed, as a fraction of the envelope's depth."""
+    interior: float = 0.5
+    """Extra billboards inside the crown volume, per superpixel."""
+    darken: float = 0.5
+    """Colour factor lost by an interior billboard on the crown's centre plane (0: none)."""
+    yaw: tuple = (20.0, 50.0)
+    """Range of the billboards' random turn about the vertical axis, degrees (either way)."""
+    max_leak: float = 0.02
+    """Largest fraction of a rear or interior billboard's pixels allowed outside the tree."""
+    tree_height: float = 10.0
+    """Height of the tree in metres (a picture has no absolute scale)."""
+    fov_y: float = 10.0
+    """Vertical field of view of the reference (front) camera, degrees."""
+    view_size: int = 384
+    """Side of each view of the turntable strip, pixels."""
+    views: tuple = (0.0, 30.0, 60.0, 90.0)
+    """Orbit angles of the strip's views, degrees (0 = the front view)."""
+
+    def validate(self) -> "CloudConfig":
+        for name, lo, hi in (("size", 64, 8192), ("segments", 1, 100_000), ("slic_side", 16, 8192),
+                             ("view_size", 16, 4096), ("overlap", 0, 64)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError(f"seed: expected a non-negative integer, got {self.seed!r}")
+        for name in ("compactness", "straightness", "min_edge", "endpoint_tolerance", "max_bulge", "depth_ratio",
+                     "tree_height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < float("inf"):
+                raise InputError(f"{name}: expected a positive number, got {v!r}")
+        for name, hi in (("push", 1.0), ("interior", 10.0), ("darken", 1.0), ("max_leak", 1.0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= hi:
+                raise InputError(f"{name}: expected a number in [0, {hi}], got {v!r}")
+        if not isinstance(self.fov_y, (int, float)) or not 0 < self.fov_y < 120:
+            raise InputError(f"fov_y: expected degrees in (0, 120), got {self.fov_y!r}")
+        y = tuple(self.yaw)
+        if len(y) != 2 or not 0 <= y[0] <= y[1] < 80:
+            raise InputError(f"yaw: expected (low, high) degrees with 0 <= low <= high < 80, got {y!r}")
+        self.yaw = (float(y[0]), float(y[1]))
+        try:
+            self.views = tuple(float(a) for a in self.views)
+        except (TypeError, ValueError):
+            raise InputError(f"views: expected a sequence of angles in degrees, got {self.views!r}") from None
+        if not self.views:
+            raise InputError("views: expected at least one angle")
+        return self
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["yaw"], d["views"] = list(self.yaw), list(self.views)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CloudConfig":
+        return cls(**check_known_options(cls, d)).validate()

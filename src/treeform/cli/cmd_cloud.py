@@ -1,0 +1,34 @@
+"""``treeform cloud``: billboard cloud of a tree picture or photo (seed 000 §6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from treeform.cli.app import app, run_api
+
+
+@app.command("cloud")
+def cloud_cmd(
+    image: Path = typer.Argument(..., help="RGBA tree picture (used as it is) or a photo (made into a billboard)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Billboard cloud (.glb); its JSON sidecar goes beside it."),
+    segments: int = typer.Option(256, "--segments", help="SLIC superpixels of the crown (paper: 256)."),
+    compactness: float = typer.Option(0.35, "--compactness",
+                                      help="SLIC compactness; lower is more fractal (paper: 0.35)."),
+    seed: int = typer.Option(0, "--seed", help="Random seed: same picture + seed -> identical files."),
+    views: Optional[Path] = typer.Option(None, "--views",
+                                         help="Also write picture | front | 30° | 60° | 90° views (PNG)."),
+):
+    """Picture of a tree -> billboard cloud (GLB, alpha-tested) with its JSON sidecar (seed 000 §6)."""
+    from treeform.methods.variations.cloud import CLOUD_STAGES, cloud
+
+    res = run_api(cloud, image, out=out, views=views, segments=segments, compactness=compactness, seed=seed,
+                  stages=CLOUD_STAGES)
+    m = res.metrics
+    line = (f"{out}: {m['billboards']} billboards (front {m['front']}, rear {m['rear']}, interior {m['interior']}, "
+            f"trunk {m['trunk']}), atlas {m['atlas'][0]}x{m['atlas'][1]}, sidecar {out.with_suffix('.json')}")
+    if "psnr" in m:
+        line += f"; front view PSNR {m['psnr']:.1f} dB, SSIM {m['ssim']:.3f}, IoU {m['iou']:.3f}"
+    typer.echo(line)
