@@ -43,6 +43,19 @@ def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
     return v
 
 
+def check_int(value, name: str, lo: int, hi: int) -> int:
+    """Return ``value`` as an int after checking it is an integer (not a bool) in ``[lo, hi]``.
+
+    Examples
+    --------
+    >>> check_int(np.int64(3), "n", 1, 5)
+    3
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
 def check_choice(value, name: str, choices) -> str:
     """Return ``value`` after checking it is one of ``choices``."""
     if value not in choices:

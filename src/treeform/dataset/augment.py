@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 
 __all__ = ["Augment", "mirror_rbv"]
@@ -94,11 +95,9 @@ class Augment:
                 raise InputError(f"Augment.{name}: expected a number in [0, {hi}], got {v!r}")
         if not (isinstance(self.blur, (int, float)) and 0.0 <= self.blur <= 20.0):
             raise InputError(f"Augment.blur: expected a sigma in [0, 20] pixels, got {self.blur!r}")
-        if isinstance(self.crop_min, bool) or not isinstance(self.crop_min, int) or self.crop_min < 8:
-            raise InputError(f"Augment.crop_min: expected an integer >= 8, got {self.crop_min!r}")
-        if self.out_size is not None and (isinstance(self.out_size, bool) or not isinstance(self.out_size, int)
-                                          or self.out_size < 8):
-            raise InputError(f"Augment.out_size: expected an integer >= 8 or None, got {self.out_size!r}")
+        check_int(self.crop_min, "Augment.crop_min", 8, 2**16)
+        if self.out_size is not None:
+            check_int(self.out_size, "Augment.out_size", 8, 2**16)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError, OutputError, TreeformError
 from treeform.dataset.storage import (
     FORMAT,
@@ -100,12 +101,6 @@ def sample_members(seed: int, index: int, options: dict, backgrounds: str | None
     return encode_sample(make_sample(seed, index, opts, backgrounds=_pool(backgrounds, photo_fraction)))
 
 
-def _check_int(value, name: str, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
 def _client(workers: int | None, scheduler: str | None):
     """A distributed Client (and the LocalCluster it owns, or None)."""
     from distributed import Client, LocalCluster
@@ -169,11 +164,11 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
     """
     from treeform.io.outputs import check_out_dir
 
-    n = _check_int(n, "n", 1, 100_000_000)
-    shard_size = _check_int(shard_size, "shard_size", 1, 1_000_000)
-    seed = _check_int(seed, "seed", 0, 2**63 - 1)
+    n = check_int(n, "n", 1, 100_000_000)
+    shard_size = check_int(shard_size, "shard_size", 1, 1_000_000)
+    seed = check_int(seed, "seed", 0, 2**63 - 1)
     if workers is not None:
-        workers = _check_int(workers, "workers", 1, 1024)
+        workers = check_int(workers, "workers", 1, 1024)
     if workers is not None and scheduler is not None:
         raise InputError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
     if scheduler is not None and "://" not in str(scheduler):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform.dataset.storage import decode_sample, read_manifest
 
@@ -100,8 +101,7 @@ class SyntheticDataset:
             ``image`` (B, T, T, 3) uint8, ``mask`` (B, T, T) uint8, ``rbv`` list of five
             (B, n, n) float32 arrays (levels 1–5), ``species`` (B,) int64, ``index`` (B,) int64.
         """
-        if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-            raise InputError(f"batch_size: expected a positive integer, got {batch_size!r}")
+        check_int(batch_size, "batch_size", 1, 2**31)
         rng = np.random.default_rng(seed)
         order = rng.permutation(len(self)) if shuffle else np.arange(len(self))
         for start in range(0, len(order), batch_size):

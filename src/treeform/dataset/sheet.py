@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 
 __all__ = ["MASK_COLORS", "contact_sheet", "mask_to_rgb", "show_dataset"]
@@ -67,8 +68,7 @@ def show_dataset(directory, *, n: int = 16, out=None, cols: int = 4, tile: int =
     from treeform.io import write_png
     from treeform.io.outputs import check_out_file
 
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise InputError(f"--n: expected a positive integer, got {n!r}")
+    check_int(n, "--n", 1, 2**31)
     timer = StageTimer(progress)
     with timer.stage("load"):
         ds = SyntheticDataset(directory)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 
 __all__ = ["LABELS", "Sample", "SampleOptions", "make_sample", "sample_rng"]
@@ -56,11 +57,8 @@ class SampleOptions:
         from treeform.geometry import LOD_PRESETS
         from treeform.growth.species import SPECIES
 
-        if isinstance(self.size, bool) or not isinstance(self.size, (int, np.integer)) or not 32 <= self.size <= 2048:
-            raise InputError(f"size: expected an integer in [32, 2048], got {self.size!r}")
-        if isinstance(self.supersample, bool) or not isinstance(self.supersample, (int, np.integer)) \
-                or not 1 <= self.supersample <= 4:
-            raise InputError(f"supersample: expected an integer in [1, 4], got {self.supersample!r}")
+        check_int(self.size, "size", 32, 2048)
+        check_int(self.supersample, "supersample", 1, 4)
         unknown = [s for s in self.species if s not in SPECIES]
         if unknown:
             raise InputError(f"species: unknown {', '.join(map(repr, unknown))}; known: {', '.join(SPECIES)}")

@@ -6,7 +6,7 @@ only when an image is read or written.
 """
 
 from treeform.io.gltf import read_glb, read_glb_counts, write_glb
-from treeform.io.images import MAX_PIXELS, read_mask, read_photo, write_png
+from treeform.io.images import MAX_PIXELS, read_mask, read_photo, read_rgba, write_png
 from treeform.io.obj import write_obj
 from treeform.io.ply import read_skeleton_ply, write_skeleton_ply
 from treeform.io.outputs import check_out_dir, check_out_file, write_json, write_staged, write_tree_outputs
@@ -21,6 +21,7 @@ __all__ = [
     "read_glb_counts",
     "read_mask",
     "read_photo",
+    "read_rgba",
     "read_skeleton_ply",
     "register_writer",
     "save",

@@ -18,7 +18,7 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.photo import Photo
 
-__all__ = ["read_photo", "read_mask", "write_png", "MAX_PIXELS", "MIN_SIDE"]
+__all__ = ["read_photo", "read_mask", "read_rgba", "write_png", "MAX_PIXELS", "MIN_SIDE"]
 
 MAX_PIXELS = 200_000_000
 """Largest image (width x height) the readers accept; Pillow's own bomb limit is raised to it."""
@@ -250,6 +250,56 @@ def read_mask(path, shape) -> np.ndarray:
     finally:
         im.close()
     return np.ascontiguousarray(mask)
+
+
+def read_rgba(path, *, require_alpha: bool = True) -> np.ndarray:
+    """Read an RGBA image (a tree, a leaflet; PNG, WebP, TIFF) as an (H, W, 4) uint8 array.
+
+    With ``require_alpha=False`` any image is accepted (an image without alpha is
+    read as fully opaque), e.g. a reference image for histogram transfer.
+
+    Raises
+    ------
+    InputError
+        One line naming the file: missing, a directory, empty, not an image, truncated,
+        smaller than 16 px on a side, or without an alpha channel (a photo: make a
+        billboard of it first, ``treeform billboard``).
+    """
+    from PIL import Image, ImageFile, UnidentifiedImageError
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not an image file")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: empty file")
+    old = ImageFile.LOAD_TRUNCATED_IMAGES
+    ImageFile.LOAD_TRUNCATED_IMAGES = False
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as im:
+                if im.size[0] * im.size[1] > 200_000_000:
+                    raise InputError(f"{path}: image too large ({im.size[0]}\u00d7{im.size[1]})")
+                im.load()
+                has_alpha = im.mode in ("RGBA", "LA", "PA", "RGBa", "La") or "transparency" in im.info
+                rgba = np.array(im.convert("RGBA"), dtype=np.uint8)
+    except UnidentifiedImageError:
+        raise InputError(f"{path}: not an image file (unrecognised format)") from None
+    except (InputError, MemoryError):
+        raise
+    except Exception as exc:
+        raise InputError(f"{path}: truncated or corrupt image data ({type(exc).__name__})") from None
+    finally:
+        ImageFile.LOAD_TRUNCATED_IMAGES = old
+    if min(rgba.shape[:2]) < 16:
+        raise InputError(f"{path}: image too small ({rgba.shape[1]}\u00d7{rgba.shape[0]} px; need at least 16 px "
+                         "on each side)")
+    if require_alpha and not has_alpha:
+        raise InputError(f"{path}: has no alpha channel; an RGBA image is needed "
+                         "(make one from a photo with `treeform billboard`)")
+    return rgba
 
 
 def write_png(array, path) -> Path:

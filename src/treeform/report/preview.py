@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
+from treeform._shared.errors import InputError
 from treeform.structures.segmentation import Segmentation
 
 
@@ -40,3 +41,20 @@ def compose_strip(tiles: list, *, height: int = 360, gap: int = 6, background=(2
         out[gap:gap + height, x:x + s.shape[1]] = s
         x += s.shape[1] + gap
     return out
+
+
+def over_checkerboard(rgba, *, cell: int = 16) -> np.ndarray:
+    """Composite an RGBA image over a grey checkerboard, so transparency shows.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), uint8
+    """
+    a = np.asarray(rgba)
+    if a.ndim != 3 or a.shape[2] != 4:
+        raise InputError(f"rgba: expected an (H, W, 4) array, got {a.shape}")
+    h, w = a.shape[:2]
+    yy, xx = np.mgrid[:h, :w]
+    board = np.where(((yy // cell + xx // cell) % 2) == 0, 232.0, 196.0).astype(np.float32)[..., None]
+    al = a[..., 3:4].astype(np.float32) / 255.0
+    return np.clip(np.rint(a[..., :3] * al + board * (1.0 - al)), 0, 255).astype(np.uint8)

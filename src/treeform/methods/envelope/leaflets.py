@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
@@ -97,7 +98,7 @@ def _read_leaflet(leaflet) -> tuple[np.ndarray, bool]:
     if isinstance(leaflet, np.ndarray):
         t = leaflet
     else:
-        from treeform.methods.variations.exemplar import read_rgba
+        from treeform.io import read_rgba
 
         t = read_rgba(leaflet)
     if t.ndim != 3 or t.shape[2] != 4 or t.dtype != np.uint8:
@@ -230,10 +231,8 @@ def leaflet_billboard(shape: str = "sphere", *, leaflet=None, size: int = 512, a
 
     if shape not in _SHAPES:
         raise InputError(f"shape: expected one of {', '.join(_SHAPES)}, got {shape!r}")
-    if isinstance(size, bool) or not isinstance(size, int) or not 64 <= size <= 4096:
-        raise InputError(f"size: expected an integer in [64, 4096], got {size!r}")
-    if isinstance(attractors, bool) or not isinstance(attractors, int) or not 20 <= attractors <= 20000:
-        raise InputError(f"attractors: expected an integer in [20, 20000], got {attractors!r}")
+    size = check_int(size, "size", 64, 4096)
+    attractors = check_int(attractors, "attractors", 20, 20000)
     if out is not None:
         from treeform.io.outputs import check_out_dir
 
@@ -303,7 +302,7 @@ def leaflet_billboard(shape: str = "sphere", *, leaflet=None, size: int = 512, a
 
 def channel_sheet(b: LeafletBillboard, *, gap: int = 4) -> np.ndarray:
     """All channels side by side (as seed 001 Fig. 13): RGBA over a checkerboard, then the six others."""
-    from treeform.methods.variations.pipeline import over_checkerboard
+    from treeform.report import over_checkerboard
 
     s = b.rgba.shape[0]
     grey = lambda a: np.repeat(a[..., None], 3, axis=2)  # noqa: E731

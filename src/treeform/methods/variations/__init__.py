@@ -9,7 +9,8 @@ pipeline functions the CLI calls (:mod:`.pipeline`): :func:`process_library`,
 
 from treeform.methods.variations.cloud import cloud
 from treeform.methods.variations.config import CloudConfig, VariationsConfig
-from treeform.methods.variations.exemplar import Exemplar, normalize_rgba, process_exemplar, read_rgba, split_crown_trunk
+from treeform.io import read_rgba
+from treeform.methods.variations.exemplar import Exemplar, normalize_rgba, process_exemplar, split_crown_trunk
 from treeform.methods.variations.pipeline import billboard, contact_sheet, load_exemplar, morph, process_library, vary
 from treeform.methods.variations.synthesis import combine_contours, match_histograms, synthesize, transfer_rgba
 

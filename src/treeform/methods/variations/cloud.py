@@ -40,7 +40,8 @@ from treeform.geometry.billboard_cloud import (
 )
 from treeform.io.outputs import check_out_file
 from treeform.methods.variations.config import CloudConfig
-from treeform.methods.variations.exemplar import CROWN, TRUNK, file_hash, normalize_rgba, read_rgba, split_crown_trunk
+from treeform.io import read_rgba
+from treeform.methods.variations.exemplar import CROWN, TRUNK, file_hash, normalize_rgba, split_crown_trunk
 
 __all__ = ["Cloud", "cloud", "front_quality", "turntable", "cloud_sidecar", "CLOUD_STAGES"]
 

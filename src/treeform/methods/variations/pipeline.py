@@ -29,19 +29,20 @@ from treeform import __version__
 from treeform._shared.errors import InputError, TreeformError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.io.images import read_rgba
 from treeform.io.outputs import check_out_dir, check_out_file, write_staged
 from treeform.methods.variations.config import VariationsConfig
+from treeform.report.preview import over_checkerboard
 from treeform.methods.variations.exemplar import (
     IMAGE_SUFFIXES,
     Exemplar,
     file_hash,
     process_exemplar,
-    read_rgba,
 )
 from treeform.methods.variations.synthesis import Synthesis, match_histograms, synthesize
 
 __all__ = ["Library", "Variations", "Morph", "Billboard", "process_library", "load_exemplar", "vary", "morph",
-           "billboard", "contact_sheet", "over_checkerboard", "default_cache_dir", "vary_stages", "LIBRARY_STAGES",
+           "billboard", "contact_sheet", "default_cache_dir", "vary_stages", "LIBRARY_STAGES",
            "MORPH_STAGES", "BILLBOARD_STAGES"]
 
 log = logging.getLogger(__name__)
@@ -61,23 +62,6 @@ def _config(config: VariationsConfig | None, options: dict) -> VariationsConfig:
 
 
 # --------------------------------------------------------------------------- pictures
-
-
-def over_checkerboard(rgba, *, cell: int = 16) -> np.ndarray:
-    """Composite an RGBA image over a grey checkerboard, so transparency shows.
-
-    Returns
-    -------
-    ndarray, shape (H, W, 3), uint8
-    """
-    a = np.asarray(rgba)
-    if a.ndim != 3 or a.shape[2] != 4:
-        raise InputError(f"rgba: expected an (H, W, 4) array, got {a.shape}")
-    h, w = a.shape[:2]
-    yy, xx = np.mgrid[:h, :w]
-    board = np.where(((yy // cell + xx // cell) % 2) == 0, 232.0, 196.0).astype(np.float32)[..., None]
-    al = a[..., 3:4].astype(np.float32) / 255.0
-    return np.clip(np.rint(a[..., :3] * al + board * (1.0 - al)), 0, 255).astype(np.uint8)
 
 
 def contact_sheet(images, *, tile: int = 256, cols: int | None = None, gap: int = 4,
