@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 VALIDATOR := tools/node_modules/gltf-validator/package.json
 
-.PHONY: demo test bench sysdeps validator clean
+.PHONY: demo test bench weights sysdeps validator clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -35,6 +35,24 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_bimodal.py
 	$(PY) benchmarks/bench_dataset.py
 	$(PY) benchmarks/bench_cloud.py
+	$(PY) benchmarks/bench_segment.py
+
+# the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill)
+DATA := out/data
+RUNS := out/weights
+weights: $(STAMP) sysdeps
+	$(PY) -m pip install -q -e ".[train]"
+	mkdir -p $(DATA) $(RUNS)
+	$(VENV)/bin/treeform dataset generate --n 2400 --out $(DATA)/train --seed 1 --shard-size 200
+	$(VENV)/bin/treeform dataset generate --n 400 --out $(DATA)/test --seed 2 --shard-size 200
+	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --out $(RUNS)/seg
+	cp $(RUNS)/seg/model.onnx src/treeform/learn/weights/seg.onnx
+	$(VENV)/bin/treeform train species --data $(DATA)/train --test-data $(DATA)/test --seg-weights src/treeform/learn/weights/seg.onnx --out $(RUNS)/species
+	cp $(RUNS)/species/model.onnx src/treeform/learn/weights/species.onnx
+	$(VENV)/bin/treeform train rbv --data $(DATA)/train --test-data $(DATA)/test --seg-weights src/treeform/learn/weights/seg.onnx --out $(RUNS)/rbv
+	cp $(RUNS)/rbv/model.onnx src/treeform/learn/weights/rbv.onnx
+	$(PY) benchmarks/bench_segment.py --test-data $(DATA)/test
+	$(PY) scripts/model_card.py --data $(DATA) --runs $(RUNS)
 
 clean:
 	rm -rf out .pytest_cache

@@ -3,9 +3,13 @@
 For each species a ground-truth tree is grown (seed 1) and
 - **fill**: a tree is grown bi-modally inside the ground truth's level-4 RBV (markers in its
   volume); fill = mean over non-empty sectors of min(grown / target sector radius, 1);
-- **mask IoU**: the ground truth's main branches (radius >= 1 px) are rendered from the front
-  at 512 px as the branch mask; a tree is grown from that mask and the level-4 RBV; IoU of
-  its front wood render (all branches) with the mask;
+- **tracing IoU**: the ground truth's main branches (radius >= 1 px) are rendered from the front
+  at 512 px as the branch mask; the tracing stage alone (planar scaffold at pixel spacing, not
+  turned, one crown year) is grown from it and the level-4 RBV; IoU of its front wood render
+  (all branches) with the mask;
+- **own volume** (``own_volume``, seed 003 §5 with perfect perception): the default bi-modal
+  growth from each tree's own level-4 RBV and branch mask, 7 species x 3 seeds: mean sector
+  radius, average branching angle and biomass against the original's.
 - **own RBV**: every node of the grown tree lies in its own RBV at levels 3–5.
 
 Run: `python benchmarks/bench_bimodal.py`
@@ -27,7 +31,7 @@ def main():
     from treeform.structures import Camera, Mesh, RadialBoundingVolume
 
     size = 512
-    print("| species | fill of target RBV (level 4) | inside target | own RBV L3-5 | mask IoU | grow from mask (s) |")
+    print("| species | fill of target RBV (level 4) | inside target | own RBV L3-5 | tracing IoU | grow from mask (s) |")
     print("|---|---|---|---|---|---|")
     ious, fills = [], []
     for sp in SPECIES:
@@ -48,16 +52,72 @@ def main():
         mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
         base = cam.project(np.zeros((1, 3)))[0]
         t0 = time.perf_counter()
-        tree = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=dist / cam.focal, mask_base=(base[0], base[1]))
+        tree = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=dist / cam.focal, mask_base=(base[0], base[1]),
+                            orient=False, clamp=False, crown_years=1, spacing=dist / cam.focal)
         dt = time.perf_counter() - t0
         wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(tree, radial_segments=6)])).mask
         iou = float((mask & wood).sum() / (mask | wood).sum())
         ious.append(iou)
         fills.append(fill)
         print(f"| {sp} | {fill:.3f} | {target.contains(rec.positions).mean():.3f} | {own} | {iou:.2f} | {dt:.2f} |")
-    print(f"\nmean fill {np.mean(fills):.3f} (min {np.min(fills):.3f}); mean mask IoU {np.mean(ious):.2f} "
+    print(f"\nmean fill {np.mean(fills):.3f} (min {np.min(fills):.3f}); mean tracing IoU {np.mean(ious):.2f} "
           f"(min {np.min(ious):.2f}, {sum(i >= 0.6 for i in ious)}/{len(ious)} >= 0.6)")
 
 
+def own_volume(seeds=(1, 2, 3), size: int = 512):
+    """Seed 003 §5 with perfect perception: regrow each species from its own level-4 RBV and branch mask.
+
+    For 7 species x ``seeds``: a tree grown with the seed is the truth; its level-4 RBV
+    (metres) and its front branch mask (branches >= 1 px at ``size``) feed
+    :func:`bimodal_grow`. Reports the mean sector radius of the regrown tree's level-4 RBV
+    over the truth's, and the regrown / true average branching angle and biomass.
+    """
+    from treeform.geometry.tubes import branch_mesh
+    from treeform.growth.bimodal import bimodal_grow
+    from treeform.growth.phenomenological import grow
+    from treeform.growth.species import SPECIES, load_species
+    from treeform.metrics import average_branching_angle, biomass
+    from treeform.render import Renderer
+    from treeform.structures import Camera, Mesh, RadialBoundingVolume
+
+    rows = []
+    print("\n| species | seed | mean sector radius ratio | branching angle ratio | biomass ratio | nodes (true / regrown) | s |")
+    print("|---|---|---|---|---|---|---|")
+    for sp in SPECIES:
+        p = load_species(sp)
+        for seed in seeds:
+            gt = grow(p, seed=seed)
+            target = RadialBoundingVolume.from_skeleton(gt, level=4)
+            h = target.physical_height
+            dist = 1000 * h
+            cam = Camera(size, size, 2 * np.degrees(np.arctan(0.6 * h / dist)), (0, h / 2, dist), (0, h / 2, 0),
+                         near=dist - 3 * h, far=dist + 3 * h)
+            px = 1.2 * h / size
+            mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
+            base = cam.project(np.zeros((1, 3)))[0]
+            t0 = time.perf_counter()
+            rec = bimodal_grow(p, target, mask=mask, seed=seed + 100, mask_scale=dist / cam.focal,
+                               mask_base=(base[0], base[1]))
+            dt = time.perf_counter() - t0
+            got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0.0, -np.inf]), level=4)
+            ratio = got.physical_radii.mean() / target.physical_radii.mean()
+            ang = average_branching_angle(rec) / average_branching_angle(gt)
+            bio = biomass(rec) / biomass(gt)
+            rows.append((sp, seed, ratio, ang, bio))
+            print(f"| {sp} | {seed} | {ratio:.2f} | {ang:.2f} | {bio:.2f} | {gt.n_nodes} / {rec.n_nodes} | {dt:.1f} |")
+    r = np.array([x[2:] for x in rows])
+    ok = (r[:, 0] >= 0.9) & (np.abs(r[:, 1] - 1) <= 0.25) & (np.abs(r[:, 2] - 1) <= 0.25)
+    print(f"\nmean: sector radius {r[:, 0].mean():.2f} (min {r[:, 0].min():.2f}), branching angle {r[:, 1].mean():.2f}, "
+          f"biomass {r[:, 2].mean():.2f} (range {r[:, 2].min():.2f}-{r[:, 2].max():.2f}); "
+          f"{ok.sum()}/{len(ok)} cases meet all three goals")
+    return rows
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if "--own" in sys.argv:
+        own_volume()
+    else:
+        main()
+        own_volume()

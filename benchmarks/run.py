@@ -39,6 +39,21 @@ def bench_reconstruct(repeat):
     return statistics.median(totals), {k: statistics.median(v) for k, v in stages.items()}, res.metrics
 
 
+def bench_reconstruct_learned(repeat):
+    from treeform.methods.learned.pipeline import reconstruct
+
+    out = Path(tempfile.mkdtemp(prefix="treeform-bench-learned-"))
+    reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, onnxruntime sessions, GL context
+    totals, stages = [], {}
+    for i in range(repeat):
+        t0 = time.perf_counter()
+        res = reconstruct(SAMPLE, out=out / f"r{i}")
+        totals.append(time.perf_counter() - t0)
+        for k, v in res.metrics["timings"].items():
+            stages.setdefault(k, []).append(v)
+    return statistics.median(totals), {k: statistics.median(v) for k, v in stages.items()}, res.metrics
+
+
 def bench_cold_cli(repeat):
     exe = Path(sys.executable).parent / "treeform"
     out = Path(tempfile.mkdtemp(prefix="treeform-cli-"))
@@ -72,6 +87,10 @@ def main():
     rows.append(("reconstruct, 450x600 photo, in-process (median)", total))
     for k, v in stages.items():
         rows.append((f"  stage {k}", v))
+    total_l, stages_l, metrics_l = bench_reconstruct_learned(args.repeat)
+    rows.append(("reconstruct --method learned, 450x600 photo, in-process (median)", total_l))
+    for k, v in stages_l.items():
+        rows.append((f"  stage {k}" + (" (inside grow)" if k in ("leaves", "mesh") else ""), v))
     t_sc, t_bn, nodes = bench_space_colonization(args.repeat)
     rows.append((f"space colonization, 10,000 attractors ({nodes} nodes)", t_sc))
     rows.append(("blue-noise sampling, 10,000 attractors", t_bn))
@@ -84,6 +103,8 @@ def main():
         print(f"| {name} | {t:.3f} |")
     print(f"\nreprojection error {100 * metrics['reprojection_error']:.1f} %, IoU {metrics['iou']:.3f}, "
           f"triangles {metrics['triangles']}")
+    print(f"learned: reprojection error {100 * metrics_l['reprojection_error']:.1f} %, IoU {metrics_l['iou']:.3f}, "
+          f"species {metrics_l['species']}, triangles {metrics_l['triangles']}")
     (ROOT / "benchmarks" / "results.json").write_text(json.dumps(
         {"machine": machine(), "command": "make bench", "repeat": args.repeat,
          "results": {name.strip(): round(t, 4) for name, t in rows}}, indent=1))

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from treeform.growth.bimodal import bimodal_grow, half_centroid, mask_markers, orient_scaffold
+from treeform.growth.bimodal import (bimodal_grow, clamp_into, half_centroid, mask_markers, orient_scaffold,
+                                     resample_scaffold)
 from treeform.growth.phenomenological import grow
 from treeform.growth.species import load_species
 from treeform.structures import Camera, Mesh, RadialBoundingVolume, TreeSkeleton
@@ -35,33 +36,53 @@ def _front_camera(h, size=512):
                   near=dist - 3 * h, far=dist + 3 * h)
 
 
-@pytest.mark.parametrize("species", ["maple", "oak"])
-def test_mask_growth_reproduces_the_branch_mask(species):
+def _own_mask(species, seed=1):
     from treeform.geometry.tubes import branch_mesh
     from treeform._shared.errors import RenderError
     from treeform.render import Renderer
 
     p = load_species(species)
-    gt = grow(p, seed=1)
+    gt = grow(p, seed=seed)
     rbv = RadialBoundingVolume.from_skeleton(gt, level=5)
     h = rbv.physical_height
     cam = _front_camera(h)
     px = 1.2 * h / 512
     try:
-        # the branch mask a photo would show: the main branches, at least ~2 px wide
         mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
     except RenderError:
         pytest.skip("no OpenGL context")
     base = cam.project(np.zeros((1, 3)))[0]
+    return p, gt, rbv, cam, mask, (base[0], base[1])
+
+
+def test_default_growth_from_own_rbv_and_mask_fills_the_volume_from_inside():
+    p, gt, rbv, cam, mask, base = _own_mask("maple")
+    target = rbv.at_level(4)
+    rec = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal, mask_base=base)
+    k = rec.meta["n_scaffold"]
+    assert target.contains(rec.positions[1:k]).mean() > 0.99  # the scaffold stays inside
+    got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0, -np.inf]), level=4)
+    assert got.physical_radii.mean() >= 0.7 * target.physical_radii.mean()
+    assert rec.n_nodes > 3 * k  # the crown grew for the species' years, not two
+
+
+@pytest.mark.parametrize("species", ["maple", "oak"])
+def test_mask_growth_reproduces_the_branch_mask(species):
+    from treeform.geometry.tubes import branch_mesh
+    from treeform.render import Renderer
+
+    p, gt, rbv, cam, mask, base = _own_mask(species)
+    # the tracing stage alone: the planar scaffold at pixel spacing, one crown year, not turned
     rec = bimodal_grow(p, rbv.at_level(4), mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal,
-                       mask_base=(base[0], base[1]))
+                       mask_base=(base[0], base[1]), orient=False, clamp=False, crown_years=1,
+                       spacing=cam.position[2] / cam.focal)
     wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(rec, radial_segments=6)])).mask
     iou = (mask & wood).sum() / (mask | wood).sum()
     assert iou >= 0.6, iou
     assert rec.meta["n_scaffold"] > 100
 
 
-def test_orientation_keeps_the_front_projection_and_turns_toward_fuller_sectors():
+def test_orientation_rotates_branches_toward_fuller_sectors():
     # a planar tree: a trunk continuing up, one branch to +x and one to -x from node 2
     pos = np.array([[0, 0, 0], [0, 1, 0], [0, 2, 0], [1, 2.5, 0], [2, 3, 0], [-1, 2.5, 0], [-2, 3, 0.0],
                     [0, 2.6, 0], [0, 3.2, 0], [0, 3.4, 0.0]])
@@ -73,9 +94,29 @@ def test_orientation_keeps_the_front_projection_and_turns_toward_fuller_sectors(
     radii[:, 4] = 3.0  # the -x sector on the left
     rbv = RadialBoundingVolume(radii, 3.5)
     out = orient_scaffold(sk, rbv)
-    np.testing.assert_allclose(out.positions[:, :2], pos[:, :2])  # front view unchanged
-    assert out.positions[4, 2] > 0.5  # right branch now reaches toward +z
-    assert out.positions[6, 2] < -0.5  # left branch: its half's only sector lies toward -x-z
+    np.testing.assert_allclose(out.positions[:, 1], pos[:, 1])  # heights unchanged
+    # a rotation about the branching point: horizontal distances from it are kept
+    d0 = np.hypot(pos[[3, 4, 5, 6], 0] - 0, pos[[3, 4, 5, 6], 2])
+    d1 = np.hypot(out.positions[[3, 4, 5, 6], 0], out.positions[[3, 4, 5, 6], 2])
+    np.testing.assert_allclose(d1, d0)
+    ang_r = np.degrees(np.arctan2(out.positions[4, 2], out.positions[4, 0]))
+    ang_l = np.degrees(np.arctan2(out.positions[6, 2], out.positions[6, 0])) % 360
+    assert 45 <= ang_r <= 90  # toward the centre of the full +x+z sector
+    assert 180 <= ang_l <= 225  # toward the only sector of the left half
+    np.testing.assert_allclose(out.positions[[7, 8, 9]], pos[[7, 8, 9]])  # the main stem stays
+
+
+def test_resample_and_clamp():
+    n = 41
+    pos = np.zeros((n, 3))
+    pos[:, 1] = np.linspace(0, 4, n)  # a 4 m stem, 0.1 m apart
+    sk = TreeSkeleton(pos, np.arange(n) - 1)
+    out, kept = resample_scaffold(sk, 0.5)
+    assert kept[0] == 0 and kept[-1] == n - 1 and len(kept) == 9
+    assert np.allclose(np.diff(out.positions[:, 1]), 0.5)
+    rbv = RadialBoundingVolume(np.full((4, 4), 1.0), 4.0)
+    p = clamp_into(rbv, np.array([[3.0, 1.0, 0.0], [0.5, 1.0, 0.0], [0, 9.0, 0]]))
+    assert np.isclose(np.hypot(p[0, 0], p[0, 2]), 0.98) and np.allclose(p[1], [0.5, 1, 0]) and p[2, 1] == 4.0
 
 
 def test_half_centroid_of_a_round_layer():

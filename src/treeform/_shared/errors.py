@@ -33,3 +33,9 @@ class RenderError(TreeformError):
     """No OpenGL context could be created (e.g. Mesa EGL is missing)."""
 
     exit_code = 5
+
+
+class ModelError(TreeformError):
+    """A shipped network's weights file is missing or unreadable (rebuild with ``make weights``)."""
+
+    exit_code = 6

@@ -21,6 +21,15 @@ class Crown(str, Enum):
     conical = "conical"
 
 
+class SegmenterName(str, Enum):
+    learned = "learned"
+    classical = "classical"
+
+
+SEGMENTER_OPTION = typer.Option(SegmenterName.classical, "--segmenter",
+                                help="Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network).")
+
+
 class Lod(str, Enum):
     low = "low"
     medium = "medium"
@@ -63,23 +72,51 @@ def run_api(func, *args, stages=None, display=None, **kwargs):
         raise typer.Exit(1)
 
 
+class Method(str, Enum):
+    envelope = "envelope"
+    learned = "learned"
+
+
 @app.command()
 def reconstruct(
-    photo: Path = typer.Argument(..., help="Photo of a tree (JPEG, PNG, ...)."),
+    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
+    method: Method = typer.Option(Method.envelope, "--method",
+                                  help="'envelope': crown envelope + RDM + space colonization (paper 001); "
+                                       "'learned': networks + bi-modal growth (paper 003)."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output directory."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    crown: Crown = typer.Option(Crown.round, "--crown", help="Crown envelope shape."),
-    leaves: int = typer.Option(8000, "--leaves", help="Number of leaf clusters."),
+    species: Optional[str] = typer.Option(None, "--species",
+                                          help="learned: grow this species instead of the predicted one."),
+    crown: Crown = typer.Option(Crown.round, "--crown", help="envelope: crown envelope shape."),
+    leaves: Optional[int] = typer.Option(None, "--leaves",
+                                         help="Number of leaf clusters (envelope default 8000; learned: per twig)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
-    height: float = typer.Option(10.0, "--height", help="Tree height in metres."),
+    height: Optional[float] = typer.Option(None, "--height",
+                                           help="Tree height in metres (envelope default 10; learned: the species')."),
+    segmenter: Optional[SegmenterName] = typer.Option(
+        None, "--segmenter", help="Tree segmentation: 'classical' or 'learned' (default: envelope classical, "
+                                  "learned learned)."),
 ):
-    """Single photo -> 3D tree (crown envelope + radial distance map + space colonization)."""
+    """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
-    from treeform.methods.envelope.pipeline import reconstruct as api
 
-    res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, leaves=leaves, lod=lod.value,
-               tree_height=height)
+    if method is Method.learned:
+        from treeform.methods.learned.pipeline import STAGES
+        from treeform.methods.learned.pipeline import reconstruct as api
+
+        res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
+                      tree_height=height, segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES)
+    else:
+        from treeform.methods.envelope.pipeline import reconstruct as api
+
+        if species is not None:
+            typer.echo("error: --species works with --method learned", err=True)
+            raise typer.Exit(2)
+        res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value,
+                      leaves=8000 if leaves is None else leaves, lod=lod.value,
+                      tree_height=10.0 if height is None else height,
+                      segmenter=(segmenter or SegmenterName.classical).value)
     print_summary(res)
 
 

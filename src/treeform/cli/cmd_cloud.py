@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
 
 
 @app.command("cloud")
@@ -20,11 +20,13 @@ def cloud_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed: same picture + seed -> identical files."),
     views: Optional[Path] = typer.Option(None, "--views",
                                          help="Also write picture | front | 30° | 60° | 90° views (PNG)."),
+    segmenter: SegmenterName = SEGMENTER_OPTION,
 ):
     """Picture of a tree -> billboard cloud (GLB, alpha-tested) with its JSON sidecar (seed 000 §6)."""
     from treeform.methods.variations.cloud import CLOUD_STAGES, cloud
 
     res = run_api(cloud, image, out=out, views=views, segments=segments, compactness=compactness, seed=seed,
+                  segmenter=segmenter.value,
                   stages=CLOUD_STAGES)
     m = res.metrics
     line = (f"{out}: {m['billboards']} billboards (front {m['front']}, rear {m['rear']}, interior {m['interior']}, "

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
 
 library_app = typer.Typer(no_args_is_help=True, help="Libraries of RGBA tree images (exemplars for `treeform vary`).")
 app.add_typer(library_app, name="library")
@@ -69,9 +69,11 @@ def billboard_cmd(
     sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write photo | trimap | billboard (PNG)."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     sky_gaps: bool = typer.Option(False, "--sky-gaps/--no-sky-gaps", help="Also make sky seen through gaps in the crown transparent (beyond the paper)."),
+    segmenter: SegmenterName = SEGMENTER_OPTION,
 ):
     """Photo -> RGBA billboard by segmentation, trimap and alpha matting (seed 000 §4.3)."""
     from treeform.methods.variations.pipeline import BILLBOARD_STAGES, billboard
 
-    res = run_api(billboard, photo, out=out, sheet=sheet, seed=seed, sky_gaps=sky_gaps, stages=BILLBOARD_STAGES)
+    res = run_api(billboard, photo, out=out, sheet=sheet, seed=seed, sky_gaps=sky_gaps, segmenter=segmenter.value,
+                  stages=BILLBOARD_STAGES)
     typer.echo(f"{out}: {res.rgba.shape[1]}x{res.rgba.shape[0]} RGBA, IoU with the segmentation {res.metrics['iou']:.3f}")

@@ -76,8 +76,37 @@ def print_summary(res) -> None:
     t.add_row("reprojection error", f"{100 * m['reprojection_error']:.1f} %")
     t.add_row("IoU", f"{m['iou']:.3f}")
     t.add_row("depth / width", f"{m['depth_width_ratio']:.2f}")
+    if "species_probabilities" in m:
+        t.add_row("species", f"{m['species']} (predicted {m['species_predicted']}, "
+                             f"p = {m['species_probabilities'][m['species_predicted']]:.2f})")
     t.add_row("nodes / leaves / triangles", f"{m['nodes']} / {m['leaves']} / {m['triangles']}")
     t.add_row("total", f"{m['total_seconds']:.2f} s")
     for name, path in sorted(res.files.items()):
         t.add_row(name, str(path))
     _out.print(t)
+
+
+class TrainProgress:
+    """A progress bar over training steps with the running loss, images/s and time left."""
+
+    def __init__(self, label: str = "train"):
+        from rich.progress import MofNCompleteColumn, TimeRemainingColumn
+
+        self.label = label
+        self.progress = Progress(SpinnerColumn(), TextColumn(f"[bold]{label}"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("loss {task.fields[loss]}  {task.fields[rate]} img/s"),
+                                 TimeElapsedColumn(), TimeRemainingColumn(), console=_err, transient=False)
+        self.task = None
+
+    def __enter__(self):
+        self.progress.__enter__()
+        self.task = self.progress.add_task(self.label, total=None, loss="-", rate="-")
+        return self
+
+    def __exit__(self, *exc):
+        return self.progress.__exit__(*exc)
+
+    def callback(self, done: int, total: int, info: dict | None = None) -> None:
+        info = info or {}
+        self.progress.update(self.task, completed=done, total=total, loss=f"{info.get('loss', float('nan')):.3f}",
+                             rate=f"{info.get('images_per_s', 0.0):.1f}")

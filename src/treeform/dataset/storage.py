@@ -8,6 +8,8 @@ Layout of a dataset directory::
     shard-00000.tar      samples 0 .. shard_size-1, WebDataset-style members per sample:
         00000000.image.png     RGB image (S, S, 3)
         00000000.mask.png      labels (S, S): 0 background, 1 foliage, 2 branch
+        00000000.rgba.png      the tree alone (S, S, 4), alpha = pixel coverage (for re-compositing
+                               over other scenes when training perception networks)
         00000000.json          species, species_id, rbv (levels 1-5), rbv_height, rbv_radius,
                                params, meta (camera, lights, materials, background)
         00000000.skeleton.json the branch graph (TreeSkeleton JSON)
@@ -34,7 +36,7 @@ __all__ = ["MEMBER_SUFFIXES", "decode_sample", "encode_sample", "read_manifest",
            "write_manifest", "write_shard", "FORMAT"]
 
 FORMAT = "treeform-synthetic-trees/1"
-MEMBER_SUFFIXES = ("image.png", "mask.png", "json", "skeleton.json", "glb")
+MEMBER_SUFFIXES = ("image.png", "mask.png", "rgba.png", "json", "skeleton.json", "glb")
 
 
 def shard_name(k: int) -> str:
@@ -61,6 +63,7 @@ def encode_sample(sample) -> dict:
               "rbv": [np.round(r, 6).tolist() for r in sample.rbv], "rbv_height": round(sample.rbv_height, 6),
               "rbv_radius": round(sample.rbv_radius, 6), "params": sample.params, "meta": sample.meta}
     out = {f"{key}.image.png": _png(sample.image), f"{key}.mask.png": _png(sample.mask),
+           f"{key}.rgba.png": _png(sample.rgba),
            f"{key}.json": _json(record), f"{key}.skeleton.json": sample.skeleton.to_json().encode()}
     if sample.store_mesh:
         import tempfile
@@ -87,6 +90,8 @@ def decode_sample(members: dict) -> dict:
             out["image"] = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
         elif suffix == "mask.png":
             out["mask"] = np.asarray(Image.open(io.BytesIO(data)))
+        elif suffix == "rgba.png":
+            out["rgba"] = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA"))
         elif suffix == "json":
             rec = json.loads(data)
             out["record"] = rec

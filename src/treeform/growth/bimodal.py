@@ -135,25 +135,21 @@ def half_centroid(rbv: RadialBoundingVolume, layer: int, side: int) -> np.ndarra
     return (area[:, None] * c).sum(0) / area.sum()
 
 
-def orient_scaffold(skeleton: TreeSkeleton, rbv: RadialBoundingVolume, *, max_angle: float = 60.0) -> TreeSkeleton:
+def orient_scaffold(skeleton: TreeSkeleton, rbv: RadialBoundingVolume, *, max_angle: float = 85.0) -> TreeSkeleton:
     """Turn a planar scaffold's branches into 3D toward the RBV's sectors (seed 003 §4.4, Fig. 8d–f).
 
     For each branching point b (a node with several children, in root-to-tip order), every
-    lateral child's subtree is turned about the vertical axis through b so that its
+    lateral child's subtree is *rotated* about the vertical axis through b so that its mean
     horizontal direction points from b toward the geometric centre g of the left or right
     half of the sectors of b's RBV layer (the half on the branch's own side of the plane):
-    toward where that layer's crown extends farthest.
-
-    The turn keeps the branch's front projection: instead of rotating (which would shorten
-    it in the photo and move it off the branch mask), each node keeps its x offset from b
-    and takes the depth offset ``dz = dx · tan(θ)``, θ the angle from the ±x axis to g − b
-    (clamped to ``max_angle``). Seen from the front the scaffold still covers the mask; in
-    3D the branch points at g. The main child (largest subtree) is not turned.
+    toward where that layer's crown extends farthest. The rotation angle is limited to
+    ``max_angle``; the main child (largest subtree) is not turned. Sub-branches are turned
+    again about their own branching points, so each branch ends up aimed at its own layer.
 
     Returns
     -------
     TreeSkeleton
-        Same topology, radii and order; new positions (x and y unchanged).
+        Same topology, radii and order; new positions (heights unchanged).
     """
     parent = skeleton.parent
     n = skeleton.n_nodes
@@ -165,8 +161,8 @@ def orient_scaffold(skeleton: TreeSkeleton, rbv: RadialBoundingVolume, *, max_an
         kids[parent[i]].append(i)
     layers = rbv.radii.shape[0]
     top = rbv.physical_height
-    limit = np.tan(np.radians(max_angle))
-    for b in range(n):
+    limit = np.radians(max_angle)
+    for b in order:  # root to tips: a branch is placed before its sub-branches are aimed
         if len(kids[b]) < 2:
             continue
         main = max(kids[b], key=lambda k: (size[k], -k))
@@ -175,17 +171,87 @@ def orient_scaffold(skeleton: TreeSkeleton, rbv: RadialBoundingVolume, *, max_an
             if c == main:
                 continue
             sub = order[tin[c]: tin[c] + size[c]]
-            dx = pos[sub, 0] - pos[b, 0]
-            mean_dx = dx.mean()
-            if abs(mean_dx) < 1e-9:
+            off = pos[sub][:, [0, 2]] - pos[b, [0, 2]]
+            v = off.mean(0)
+            if np.hypot(*v) < 1e-9:
                 continue
-            side = -1 if mean_dx < 0 else 1
+            side = -1 if v[0] < 0 else 1
             g = half_centroid(rbv, layer, side) + rbv.origin[[0, 2]] - pos[b, [0, 2]]
-            if abs(g[0]) < 1e-9 or np.sign(g[0]) != side:
+            if np.hypot(*g) < 1e-9:
                 continue
-            slope = float(np.clip(g[1] / g[0], -limit, limit))
-            pos[sub, 2] = pos[b, 2] + dx * slope
+            ang = np.arctan2(g[1], g[0]) - np.arctan2(v[1], v[0])
+            ang = float(np.clip((ang + np.pi) % (2 * np.pi) - np.pi, -limit, limit))
+            c_, s_ = np.cos(ang), np.sin(ang)
+            # rotation in the (x, z) plane by ang (x toward z)
+            pos[sub, 0] = pos[b, 0] + c_ * off[:, 0] - s_ * off[:, 1]
+            pos[sub, 2] = pos[b, 2] + s_ * off[:, 0] + c_ * off[:, 1]
     return TreeSkeleton(pos, parent, skeleton.radius, skeleton.order, skeleton.age, dict(skeleton.meta))
+
+
+def resample_scaffold(skeleton: TreeSkeleton, spacing: float) -> tuple[TreeSkeleton, np.ndarray]:
+    """Keep a subset of a dense scaffold's nodes about ``spacing`` apart along its branches.
+
+    The root, every branching point and every tip are kept; along a branch a node is kept
+    once the arc length from the last kept node reaches ``spacing``. A mask-traced scaffold
+    has a node per pixel; growth models count light and shadow per node, so the scaffold
+    must have the crown's internode spacing for its light to mean the same.
+
+    Returns
+    -------
+    skeleton : TreeSkeleton
+        The kept nodes, each attached to its nearest kept ancestor.
+    kept : ndarray of int
+        Indices of the kept nodes in the input.
+    """
+    parent = skeleton.parent
+    n = skeleton.n_nodes
+    nkids = np.bincount(parent[1:], minlength=n)
+    pos = skeleton.positions
+    keep = np.zeros(n, bool)
+    keep[0] = True
+    keep[nkids != 1] = True  # branching points and tips
+    acc = np.zeros(n)
+    for i in range(1, n):  # parents come first
+        pa = parent[i]
+        a = (0.0 if keep[pa] else acc[pa]) + float(np.linalg.norm(pos[i] - pos[pa]))
+        if a >= spacing:
+            keep[i] = True
+            a = 0.0
+        acc[i] = a
+    kept = np.flatnonzero(keep)
+    new_index = -np.ones(n, np.int64)
+    new_index[kept] = np.arange(len(kept))
+    anc = np.arange(n)  # nearest kept ancestor-or-self
+    for i in range(1, n):
+        anc[i] = i if keep[i] else anc[parent[i]]
+    new_parent = np.array([-1] + [new_index[anc[parent[i]]] for i in kept[1:]], np.int64)
+    sk = TreeSkeleton(pos[kept], new_parent, skeleton.radius[kept], skeleton.order[kept], skeleton.age[kept],
+                      dict(skeleton.meta))
+    return sk, kept
+
+
+def clamp_into(rbv: RadialBoundingVolume, points: np.ndarray, *, margin: float = 0.98) -> np.ndarray:
+    """Pull points that lie outside an RBV toward its axis until they are inside (heights clipped to it).
+
+    A point in a sector of radius r that stands farther than ``margin · r`` from the axis is
+    moved radially to ``margin · r``. Returns a new (N, 3) array.
+    """
+    p = np.array(points, np.float64, copy=True)
+    o = rbv.origin
+    h = rbv.physical_height
+    p[:, 1] = np.clip(p[:, 1], o[1], o[1] + h)
+    local = p - o
+    n_l, n_s = rbv.radii.shape
+    layer = np.clip((local[:, 1] / max(h, 1e-12) * n_l).astype(np.int64), 0, n_l - 1)
+    ang = np.mod(np.arctan2(local[:, 2], local[:, 0]), 2 * np.pi)
+    sector = np.clip((ang / (2 * np.pi) * n_s).astype(np.int64), 0, n_s - 1)
+    r = np.hypot(local[:, 0], local[:, 2])
+    lim = margin * rbv.physical_radii[layer, sector]
+    out = r > lim
+    f = np.where(out, lim / np.maximum(r, 1e-12), 1.0)
+    p[:, 0] = o[0] + local[:, 0] * f
+    p[:, 2] = o[2] + local[:, 2] * f
+    return p
 
 
 class _AboveGround:
@@ -249,7 +315,7 @@ def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance
 def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None = None, mask_scale: float | None = None,
                  mask_base=None, seed=0,
                  markers: int = 4000, segment_length: float | None = None, max_markers: int = 40_000,
-                 crown_years: int = 2,
+                 crown_years: int | None = None, spacing: float | None = None, orient: bool = True, clamp: bool = True,
                  progress: ProgressCallback | None = None) -> TreeSkeleton:
     """Grow a tree by the bi-modal model of seed 003 §4.3–4.4 inside a radial bounding volume.
 
@@ -272,9 +338,16 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         traces every branch; 1/60 of the RBV height without).
     max_markers : int
         At most this many branch pixels become markers (a deterministic subset).
-    crown_years : int
-        Growth cycles of the phenomenological crown on the scaffold (the scaffold already
-        stands for the grown tree; the crown adds the last years' shoots).
+    crown_years : int, optional
+        Growth cycles of the phenomenological crown on the scaffold (default: the species'
+        age, so the crown grows as far as the species does, inside the RBV).
+    spacing : float, optional
+        Node spacing of the scaffold handed to the crown growth (default: half the species'
+        base internode length): the traced scaffold is resampled so that light and shadow,
+        counted per node, mean what they mean in the crown.
+    orient : bool
+        Rotate the mask's planar scaffold toward the RBV's sectors (§4.4, Fig. 8d–f); off,
+        the scaffold stays on the mask's plane (its front view is the mask).
     progress : callable, optional
 
     Returns
@@ -344,15 +417,22 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
             reach = np.zeros(scaffold.n_nodes)
             np.maximum.at(reach, owner, d / frame.scale)
             r_mask = np.minimum(reach + 0.5, cap) * frame.scale
-            scaffold = orient_scaffold(scaffold, rbv)
-        scaffold = TreeSkeleton(scaffold.positions + [rbv.origin[0], 0, rbv.origin[2]], scaffold.parent,
-                                scaffold.radius, scaffold.order, scaffold.age)
+        step = spacing or 0.5 * params.internode_length_base
+        scaffold, kept = resample_scaffold(scaffold, step)
+        if mask is not None:
+            r_mask = r_mask[kept]
+            if orient:
+                scaffold = orient_scaffold(scaffold, rbv)
+        pos = scaffold.positions + [rbv.origin[0], 0, rbv.origin[2]]
+        if clamp:
+            pos[1:] = clamp_into(rbv, pos[1:])  # the scaffold stays inside the volume
+        scaffold = TreeSkeleton(pos, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
         scaffold.positions[0] = 0.0
     with timer.stage("crown"):
         from dataclasses import replace
 
-        sk = grow(replace(params, age=max(1, min(int(crown_years), params.age))), seed=rng, envelope=rbv,
-                  initial=scaffold)
+        years = params.age if crown_years is None else max(1, int(crown_years))
+        sk = grow(replace(params, age=years), seed=rng, envelope=rbv, initial=scaffold)
     radius = sk.radius.copy()
     k = scaffold.n_nodes
     if mask is not None:

@@ -11,10 +11,10 @@ METHODS = {
         "treeform.methods.envelope.pipeline:reconstruct",
     ),
     "learned": (
-        "Botanical tree of a named species by phenomenological bud-based growth (the developmental "
-        "model of the learned single-image method)",
+        "Single photo -> 3D tree: segmentation, species and radial-bounding-volume networks + bi-modal "
+        "growth of the species' developmental model (also: grow a named species)",
         "Li et al., Learning to reconstruct botanical trees from single images, ACM TOG 40(6) (2021)",
-        "treeform.methods.learned.grow:grow_tree",
+        "treeform.methods.learned.pipeline:reconstruct",
     ),
     "variations": (
         "New RGBA tree images from a library of RGBA trees (contour synthesis + mean value coordinates); "

@@ -2,8 +2,9 @@
 
 from treeform.metrics.image import psnr, ssim
 from treeform.metrics.reprojection import extent_ratio, iou, reprojection_error
+from treeform.metrics.segmentation import class_iou, confusion_matrix, tree_iou
 
-__all__ = ["reprojection_error", "iou", "extent_ratio", "psnr", "ssim"]
+__all__ = ["reprojection_error", "iou", "extent_ratio", "psnr", "ssim", "class_iou", "confusion_matrix", "tree_iou"]
 
 # tree-form metrics of seed 003 §6
 from treeform.metrics.treeform_metrics import (  # noqa: E402

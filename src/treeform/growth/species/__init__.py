@@ -7,6 +7,7 @@ Each species is a JSON file beside this module that users can copy and edit::
       "source": "...",                      # free text (optional)
       "base": "oak",                        # optional: start from this preset, override below
       "parameters": {"growth_rate": 3.0, ...},   # GrowthParameters fields
+      "reference_height": 17.0,             # optional: metres of a typical grown tree (RBV scale, 003 §4.4)
       "appearance": {"leaf_color": [r, g, b], "leaf_size": 0.5}   # optional
     }
 
@@ -23,13 +24,14 @@ from pathlib import Path
 from treeform._shared.errors import InputError
 from treeform.growth.phenomenological import GrowthParameters
 
-__all__ = ["SPECIES", "SpeciesAppearance", "load_species", "load_species_appearance", "species_path"]
+__all__ = ["SPECIES", "SpeciesAppearance", "load_species", "load_species_appearance", "load_reference_height",
+           "species_path"]
 
 _DIR = Path(__file__).resolve().parent
 SPECIES = ("acacia", "apple", "willow", "maple", "birch", "oak", "pine")
 """The seven presets of seed 003 Table 2, in the table's order."""
 
-_TOP_KEYS = {"species", "source", "notes", "base", "parameters", "appearance"}
+_TOP_KEYS = {"species", "source", "notes", "base", "parameters", "appearance", "reference_height"}
 
 
 @dataclass(frozen=True)
@@ -144,3 +146,26 @@ def load_species_appearance(name_or_path) -> SpeciesAppearance:
     if not size > 0:
         raise InputError(f"species {data['_path'].name}: leaf_size must be positive, got {size}")
     return SpeciesAppearance(color, size)
+
+
+def load_reference_height(name_or_path) -> float:
+    """The species' RBV scale factor (seed 003 §4.4): the height in metres of a typical tree of it.
+
+    The presets store the median height of the preset grown at its age over 2,400 seeds (the
+    training data of the networks), so a height-normalised RBV predicted from a photo becomes
+    metres. A file without it inherits its ``base``'s, else 10 m.
+
+    >>> load_reference_height("oak")
+    17.0
+    """
+    data = _read(name_or_path)
+    h = data.get("reference_height")
+    if h is None:
+        return load_reference_height(data["base"]) if data.get("base") is not None else 10.0
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        raise InputError(f"species {data['_path'].name}: reference_height must be a number, got {h!r}") from None
+    if not h > 0:
+        raise InputError(f"species {data['_path'].name}: reference_height must be positive, got {h}")
+    return h

@@ -20,6 +20,8 @@ class EnvelopeConfig:
     """Long side in pixels the photo is reduced to before any work."""
     tree_height: float = 10.0
     """Assumed height of the tree in metres (a single photo has no absolute scale)."""
+    segmenter: str = "classical"
+    """Tree segmentation: 'classical' (colour rules + graph cut, default) or 'learned' (the network)."""
     fov_y: float = 40.0
     """Vertical field of view of the photo's camera in degrees."""
     crown: str = "round"
@@ -68,6 +70,7 @@ class EnvelopeConfig:
     def validate(self) -> "EnvelopeConfig":
         check_choice(self.crown, "crown", ("round", "conical"))
         check_choice(self.lod, "lod", ("low", "medium", "high", "full"))
+        check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         if self.tangent_k is not None:
             check_positive(self.tangent_k, "tangent_k")
         for name in ("tree_height", "depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent",

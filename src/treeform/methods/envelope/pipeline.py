@@ -18,6 +18,8 @@ from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, write_json
+from treeform.methods._single_photo import (as_photo, fit_photo, load_photo, photo_camera,  # noqa: F401
+                                              segment_or_mask, side_top_cameras)
 from treeform.methods.envelope.config import EnvelopeConfig
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
 
@@ -48,55 +50,6 @@ class Reconstruction:
     files: dict = field(default_factory=dict)
 
 
-def _as_photo(photo, max_size: int) -> Photo:
-    from treeform.io.images import read_photo
-
-    if isinstance(photo, Photo):
-        return photo
-    if isinstance(photo, np.ndarray):
-        if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
-            raise InputError(f"photo: expected an (H, W, 3) uint8 array, got {photo.shape} {photo.dtype}")
-        return Photo(np.ascontiguousarray(photo))
-    return read_photo(photo, max_size=max_size)
-
-
-def _fit(photo: Photo, max_size: int) -> Photo:
-    """Downscale so the long side is at most ``max_size``."""
-    h, w = photo.shape
-    s = max_size / max(h, w)
-    if s >= 1:
-        return photo
-    from PIL import Image
-
-    im = Image.fromarray(photo.image).resize((max(1, round(w * s)), max(1, round(h * s))), Image.LANCZOS)
-    return Photo(np.asarray(im), photo.source, photo.scale * s)
-
-
-def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: float) -> tuple[Camera, float]:
-    """The camera that took the photo, in a world where the trunk base is the origin.
-
-    The tree spans ``layout.height_px`` pixels and is ``tree_height`` metres tall, which
-    fixes metres per pixel m on the plane z = 0 through the trunk; the camera at distance
-    D = focal · m on +Z looks along -Z at that plane, so the plane maps onto the photo
-    pixel for pixel.
-
-    Returns
-    -------
-    camera : Camera
-    m : float
-        Metres per pixel on the z = 0 plane.
-    """
-    m = tree_height / layout.height_px
-    focal = 0.5 * height / math.tan(math.radians(fov_y) / 2)
-    dist = focal * m
-    bu, bv = layout.base
-    cx = (width / 2 - bu) * m
-    cy = (bv - height / 2) * m
-    cam = Camera(width, height, fov_y, (cx, cy, dist), (cx, cy, 0.0), (0.0, 1.0, 0.0),
-                 near=max(dist - 4 * tree_height, dist * 0.05), far=dist + 4 * tree_height)
-    return cam, m
-
-
 def _pixels_to_world(cam: Camera, m: float, uvz: np.ndarray) -> np.ndarray:
     """(column, row, height-in-pixels) -> world, by unprojecting at depth D - z·m."""
     dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
@@ -113,15 +66,6 @@ def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -
         return np.stack([np.zeros(3), np.array([0.0, seg_len, 0.0])])
     t = np.linspace(0, s[-1], max(2, int(s[-1] / seg_len) + 1))
     return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
-
-
-def _views(cam: Camera, tree_height: float, size: int) -> dict:
-    """Side and top cameras at the front camera's distance, centred on the tree axis."""
-    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
-    mid = (0.0, tree_height / 2, 0.0)
-    side = Camera(cam.width, cam.height, cam.fov_y, (dist, mid[1], 0.0), mid, (0, 1, 0), cam.near, cam.far)
-    top = Camera(cam.width, cam.height, cam.fov_y, (0.0, mid[1] + dist, 0.0), mid, (0, 0, -1), cam.near, cam.far)
-    return {"side": side, "top": top}
 
 
 def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = None,
@@ -153,18 +97,12 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
     rng = as_rng(cfg.seed)
 
     with timer.stage("load"):
-        from treeform.io.images import read_mask
-
-        ph = _fit(_as_photo(photo, max(cfg.max_size, 64)), cfg.max_size)
+        ph, user_mask = load_photo(photo, mask, max_size=cfg.max_size)
         image = ph.image
-        user_mask = None
-        if mask is not None:
-            user_mask = read_mask(mask, ph.shape) if not isinstance(mask, np.ndarray) else np.asarray(mask)
     with timer.stage("segment"):
         from treeform.crown.layout import tree_layout
-        from treeform.segment import mask_to_segmentation, segment_tree
 
-        seg = mask_to_segmentation(user_mask, image) if user_mask is not None else segment_tree(image, seed=cfg.seed)
+        seg = segment_or_mask(image, user_mask, segmenter=cfg.segmenter, seed=cfg.seed)
         layout = tree_layout(seg)
         height, width = ph.shape
         cam, mpp = photo_camera(width, height, layout, cfg.tree_height, cfg.fov_y)
@@ -283,7 +221,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         light = Lighting(direction=(-0.4, 0.6, 0.7), key=(0.45, 0.45, 0.42), sky=(0.8, 0.8, 0.82),
                          ground=(0.55, 0.54, 0.5), camera_relative=True)
         renders = {"front": Renderer(cam, lighting=light).render(mesh)}
-        for name, vc in _views(cam, cfg.tree_height, cfg.render_size).items():
+        for name, vc in side_top_cameras(cam, cfg.tree_height, cfg.render_size).items():
             renders[name] = Renderer(vc, lighting=light).render(mesh)
         front_mask = renders["front"].mask
         metrics = {

@@ -16,6 +16,25 @@ def _lod_names() -> tuple:
     return tuple(LOD_PRESETS)
 
 
+def _check_common(cfg) -> None:
+    """Checks shared by the learned method's configs: seed, lod, fov_y, leaves, integer ranges."""
+    if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, numbers.Integral):
+        raise InputError(f"seed: expected an integer, got {cfg.seed!r}")
+    check_choice(cfg.lod, "lod", _lod_names())
+    if not 5 <= cfg.fov_y <= 120:
+        raise InputError(f"fov_y: expected 5..120 degrees, got {cfg.fov_y}")
+    if cfg.leaves is not None and (isinstance(cfg.leaves, bool) or not isinstance(cfg.leaves, numbers.Integral)
+                                   or not 0 <= cfg.leaves <= 2_000_000):
+        raise InputError(f"leaves: expected an integer in [0, 2000000] or None, got {cfg.leaves!r}")
+
+
+def _check_ints(cfg, ranges) -> None:
+    for name, lo, hi in ranges:
+        v = getattr(cfg, name)
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not lo <= v <= hi:
+            raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+
+
 @dataclass
 class GrowConfig:
     """Every knob of :func:`treeform.methods.learned.grow.grow_tree`."""
@@ -55,26 +74,16 @@ class GrowConfig:
     def validate(self) -> "GrowConfig":
         if not isinstance(self.species, str) or not self.species:
             raise InputError(f"species: expected a species name or a path, got {self.species!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
-            raise InputError(f"seed: expected an integer, got {self.seed!r}")
+        _check_common(self)
         self.seed = int(self.seed)
         if self.mask is not None and self.rbv is None:
             raise InputError("mask: a branch mask needs --rbv (the volume the crown grows in)")
         if not isinstance(self.params, dict):
             raise InputError(f"params: expected a mapping of growth parameters, got {type(self.params).__name__}")
-        check_choice(self.lod, "lod", _lod_names())
         check_positive(self.leaves_per_twig, "leaves_per_twig", allow_zero=True)
         if self.leaf_size is not None:
             check_positive(self.leaf_size, "leaf_size")
-        if not 5 <= self.fov_y <= 120:
-            raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
-        for name, lo, hi in (("twig_tips", 1, 10_000), ("radial_segments", 3, 64), ("render_size", 32, 4096)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not lo <= v <= hi:
-                raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
-        if self.leaves is not None and (isinstance(self.leaves, bool) or not isinstance(self.leaves, numbers.Integral)
-                                        or not 0 <= self.leaves <= 2_000_000):
-            raise InputError(f"leaves: expected an integer in [0, 2000000] or None, got {self.leaves!r}")
+        _check_ints(self, (("twig_tips", 1, 10_000), ("radial_segments", 3, 64), ("render_size", 32, 4096)))
         return self
 
     def to_dict(self) -> dict:
@@ -88,3 +97,50 @@ class GrowConfig:
         if "params" in d and d["params"] is not None:
             d["params"] = dict(d["params"])
         return cls(**d).validate()
+
+
+@dataclass
+class LearnedConfig:
+    """Every knob of :func:`treeform.methods.learned.pipeline.reconstruct` (seed 003 §5)."""
+
+    seed: int = 0
+    """Random seed: same photo + seed -> byte-identical skeleton.json."""
+    species: str | None = None
+    """Species preset to grow; None: the species network's prediction."""
+    segmenter: str = "learned"
+    """Tree segmentation: 'learned' (network) or 'classical' (colour rules + graph cut)."""
+    tree_height: float | None = None
+    """Tree height in metres; None: the predicted species' reference height (its RBV scale, §4.4)."""
+    rbv_level: int = 4
+    """Level of the predicted RBV the crown grows in (4 = 8 layers x 8 sectors)."""
+    max_size: int = 640
+    """Long side the photo is reduced to before segmentation."""
+    fov_y: float = 40.0
+    """Vertical field of view of the photo's camera in degrees."""
+    leaves: int | None = None
+    """Total number of leaf clusters; None: the species' leaves per twig."""
+    lod: str = "medium"
+    """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
+    render_size: int = 512
+    """Height in pixels of the side and top preview renders."""
+
+    def validate(self) -> "LearnedConfig":
+        _check_common(self)
+        if self.species is not None:
+            from treeform.growth.species import SPECIES
+
+            check_choice(self.species, "species", SPECIES)
+        check_choice(self.segmenter, "segmenter", ("learned", "classical"))
+        if self.tree_height is not None:
+            check_positive(self.tree_height, "tree_height")
+        if self.rbv_level not in (1, 2, 3, 4, 5):
+            raise InputError(f"rbv_level: expected 1..5, got {self.rbv_level!r}")
+        _check_ints(self, (("max_size", 32, 8192), ("render_size", 32, 4096)))
+        return self
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LearnedConfig":
+        return cls(**check_known_options(cls, d)).validate()

@@ -160,7 +160,8 @@ def _read_branch_mask(path) -> np.ndarray:
 
 
 def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: ProgressCallback | None = None,
-              config: GrowConfig | None = None, **overrides) -> GrowResult:
+              config: GrowConfig | None = None, rbv_volume=None, branch_mask: np.ndarray | None = None,
+              mask_scale: float | None = None, mask_base=None, previews: bool = True, **overrides) -> GrowResult:
     """Grow a leafy, textured 3D tree of a species (seed 003 §4.3, Appendix Tables 2–3).
 
     Parameters
@@ -177,6 +178,15 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         ``progress(stage, event, seconds)`` for the stages in :data:`STAGES`.
     config : GrowConfig, optional
         Base configuration (``species``, ``seed`` and ``out`` given here win).
+    rbv_volume : RadialBoundingVolume, optional
+        In-memory RBV for bi-modal growth (instead of the ``rbv`` file of the config).
+    branch_mask : ndarray, shape (H, W), bool, optional
+        In-memory branch mask (instead of the ``mask`` file), with its ``mask_scale``
+        (metres per pixel) and ``mask_base`` ((column, row) of the tree base); see
+        :func:`~treeform.growth.bimodal.bimodal_grow`.
+    previews : bool
+        Render the front / side / top preview strip (callers that render their own views
+        turn it off).
     **overrides
         :class:`GrowConfig` fields (``leaves=5000, lod="low", leaves_per_twig=2, ...``) or
         growth parameters (``age=12, growth_rate=2.5, ...``; see
@@ -215,7 +225,7 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
     rng = as_rng(cfg.seed)
 
     with timer.stage("grow"):
-        if cfg.rbv is None:
+        if cfg.rbv is None and rbv_volume is None:
             from treeform.growth.phenomenological import grow
 
             skeleton = grow(params, seed=cfg.seed)
@@ -223,9 +233,11 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
             from treeform.growth.bimodal import bimodal_grow
             from treeform.structures import RadialBoundingVolume
 
-            rbv = RadialBoundingVolume.load(cfg.rbv)
-            mask = _read_branch_mask(cfg.mask) if cfg.mask is not None else None
-            skeleton = bimodal_grow(params, rbv, mask=mask, seed=cfg.seed)
+            rbv = rbv_volume if rbv_volume is not None else RadialBoundingVolume.load(cfg.rbv)
+            mask = branch_mask if branch_mask is not None else (
+                _read_branch_mask(cfg.mask) if cfg.mask is not None else None)
+            skeleton = bimodal_grow(params, rbv, mask=mask, mask_scale=mask_scale, mask_base=mask_base,
+                                    seed=cfg.seed)
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
         from treeform.growth.leaves import twig_foliage
@@ -238,15 +250,17 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
 
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
                          leaf_texture=leaf_texture(seed=cfg.seed), seed=cfg.seed)
-    with timer.stage("render"):
-        from treeform.render import render_views, to_uint8_rgb
-        from treeform.report import compose_strip
+    renders, preview = {}, None
+    if previews:
+        with timer.stage("render"):
+            from treeform.render import render_views, to_uint8_rgb
+            from treeform.report import compose_strip
 
-        pts_all = np.concatenate([skeleton.positions, foliage.positions]) if len(foliage) else skeleton.positions
-        pad = ((cfg.leaf_size or look.leaf_size) if len(foliage) else 0.0) + float(skeleton.radius.max())
-        cam = frame_camera(pts_all.min(0) - pad, pts_all.max(0) + pad, size=cfg.render_size, fov_y=cfg.fov_y)
-        renders = render_views(mesh, cam, views=("front", "side", "top"), lighting=preview_lighting())
-        preview = compose_strip([to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+            pts_all = np.concatenate([skeleton.positions, foliage.positions]) if len(foliage) else skeleton.positions
+            pad = ((cfg.leaf_size or look.leaf_size) if len(foliage) else 0.0) + float(skeleton.radius.max())
+            cam = frame_camera(pts_all.min(0) - pad, pts_all.max(0) + pad, size=cfg.render_size, fov_y=cfg.fov_y)
+            renders = render_views(mesh, cam, views=("front", "side", "top"), lighting=preview_lighting())
+            preview = compose_strip([to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
     metrics = {
         "species": skeleton.meta["species"],
         "seed": cfg.seed,

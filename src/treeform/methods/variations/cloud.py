@@ -108,7 +108,7 @@ def _load(image, cfg: CloudConfig) -> tuple[np.ndarray, dict]:
         if image.ndim == 3 and image.shape[2] == 4 and image.dtype == np.uint8:
             return image, {"kind": "rgba", "file": None}
         if image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8:
-            return billboard(image, seed=cfg.seed).rgba, {"kind": "photo", "file": None}
+            return billboard(image, seed=cfg.seed, segmenter=cfg.segmenter).rgba, {"kind": "photo", "file": None}
         raise InputError(f"image: expected an (H, W, 4) or (H, W, 3) uint8 array, got {image.shape} {image.dtype}")
     path = Path(image)
     rgba = read_rgba(path, require_alpha=False)
@@ -116,7 +116,7 @@ def _load(image, cfg: CloudConfig) -> tuple[np.ndarray, dict]:
     if (rgba[..., 3] < 128).any():
         return rgba, {**source, "kind": "rgba"}
     # no transparent pixel: a photo -> segmentation, trimap and alpha matting (§4.3)
-    return billboard(path, seed=cfg.seed).rgba, {**source, "kind": "photo"}
+    return billboard(path, seed=cfg.seed, segmenter=cfg.segmenter).rgba, {**source, "kind": "photo"}
 
 
 def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: CloudConfig | None = None,

@@ -49,12 +49,15 @@ class VariationsConfig:
     """Long side a photo is reduced to before a billboard is made of it."""
     matting_side: int = 800
     """Long side at which alpha matting runs (the alpha is upsampled to the photo's size)."""
+    segmenter: str = "classical"
+    """Billboards from photos: tree segmentation, 'classical' (colour rules, default) or 'learned' (network)."""
     sky_gaps: bool = False
     """Billboards: make sky seen through gaps in the crown transparent (the automatic
     segmentation counts those gaps as tree, so this lowers the IoU with it a little)."""
 
     def validate(self) -> "VariationsConfig":
         check_choice(self.pairing, "pairing", ("similar", "random"))
+        check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         for name, lo, hi in (("size", 64, 8192), ("trunk_points", 1, 100_000), ("crown_points", 3, 1_000_000),
                              ("simplified_points", 5, 1000), ("dilate", 0, 256), ("mvc_step", 1, 64),
                              ("exemplars_per_variation", 1, 16), ("tile", 16, 4096), ("photo_max_size", 16, 8192),
@@ -105,6 +108,8 @@ class CloudConfig:
 
     seed: int = 0
     """Random seed: same picture + seed -> byte-identical GLB and JSON."""
+    segmenter: str = "classical"
+    """A photo (no transparency) is made into a billboard first: 'classical' (default) or 'learned' segmentation."""
     size: int = 1024
     """Side of the normalised picture the cloud is made of, pixels (§4.1: 1024)."""
     segments: int = 256
@@ -147,6 +152,7 @@ class CloudConfig:
     """Orbit angles of the strip's views, degrees (0 = the front view)."""
 
     def validate(self) -> "CloudConfig":
+        check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         for name, lo, hi in (("size", 64, 8192), ("segments", 1, 100_000), ("slic_side", 16, 8192),
                              ("view_size", 16, 4096), ("overlap", 0, 64)):
             v = getattr(self, name)

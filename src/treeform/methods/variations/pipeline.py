@@ -522,7 +522,7 @@ def billboard(photo, *, out=None, sheet=None, config: VariationsConfig | None = 
               progress: ProgressCallback | None = None, **options) -> Billboard:
     """Photo of a tree -> RGBA billboard (seed 000 §4.3, Fig. 4).
 
-    The photo is segmented automatically (:func:`treeform.segment.segment_tree`); a
+    The photo is segmented automatically (:func:`treeform.segment.segment`); a
     trimap is derived from the segmentation (a dilated band = unknown, the eroded trunk
     and points sampled in the eroded crown = foreground, the rest = background — with
     ``sky_gaps=True`` also sky seen through crown gaps, beyond the paper,
@@ -566,9 +566,9 @@ def billboard(photo, *, out=None, sheet=None, config: VariationsConfig | None = 
             ph = read_photo(photo, max_size=cfg.photo_max_size)
         image = ph.image
     with timer.stage("segment"):
-        from treeform.segment import segment_tree
+        from treeform.segment import segment
 
-        seg = segment_tree(image, seed=cfg.seed)
+        seg = segment(image, method=cfg.segmenter, seed=cfg.seed)
     with timer.stage("trimap"):
         from treeform.segment.matting import make_trimap
 

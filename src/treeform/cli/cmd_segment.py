@@ -1,0 +1,51 @@
+"""``treeform segment``: the tree's pixels of a photo as labels (0 background, 1 foliage, 2 wood)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
+
+
+@app.command("segment")
+def segment_cmd(
+    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
+    out: Path = typer.Option(..., "--out", "-o", help="labels.png: 8-bit, 0 background, 1 foliage, 2 wood."),
+    overlay: Optional[Path] = typer.Option(None, "--overlay", help="Also write the photo with the labels tinted (PNG)."),
+    segmenter: SegmenterName = SEGMENTER_OPTION,
+    seed: int = typer.Option(0, "--seed", help="Seed of the classical graph cut."),
+):
+    """Segment the main tree of a photo: background / foliage / wood labels at the photo's size."""
+    from treeform.methods.learned.perception import SEGMENT_STAGES, segment_photo
+
+    res = run_api(segment_photo, photo, out=out, overlay=overlay, segmenter=segmenter.value, seed=seed,
+                  stages=SEGMENT_STAGES)
+    f = res.fractions
+    h, w = res.segmentation.shape
+    typer.echo(f"{out}: {w}x{h} labels, foliage {100 * f['foliage']:.1f} %, wood {100 * f['wood']:.1f} % of the photo"
+               + (f"; overlay {overlay}" if overlay else ""))
+
+
+@app.command("species")
+def species_cmd(
+    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
+    json_out: bool = typer.Option(False, "--json", help="Print all probabilities as JSON."),
+    segmenter: SegmenterName = typer.Option(SegmenterName.learned, "--segmenter",
+                                            help="Segmentation the species network reads (it was trained on "
+                                                 "the learned one's masks)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the classical graph cut."),
+):
+    """Species of the main tree of a photo: the top 3 of the seven presets with probabilities."""
+    import json
+
+    from treeform.methods.learned.perception import SPECIES_STAGES, classify_species
+
+    probs = run_api(classify_species, photo, segmenter=segmenter.value, seed=seed, stages=SPECIES_STAGES)
+    if json_out:
+        typer.echo(json.dumps({k: round(v, 4) for k, v in probs.items()}))
+    else:
+        for name, p in list(probs.items())[:3]:
+            typer.echo(f"{name:<8} {p:.3f}")

@@ -1,0 +1,75 @@
+"""``treeform train seg``: train a perception network (needs the ``train`` extra: torch, onnx)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from treeform.cli.app import app, run_api
+
+train_app = typer.Typer(no_args_is_help=True, help="Train the perception networks on synthetic data (needs torch).")
+app.add_typer(train_app, name="train")
+
+
+@train_app.command("seg")
+def seg_cmd(
+    data: Path = typer.Option(..., "--data", help="Training dataset (treeform dataset generate)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Run directory: checkpoint.pt, model.onnx, metrics.json."),
+    test_data: Optional[Path] = typer.Option(None, "--test-data", help="Held-out dataset (another seed) for the test split."),
+    cutouts: Optional[Path] = typer.Option(None, "--cutouts", help="Folder of RGBA tree cut-outs (real texture)."),
+    steps: int = typer.Option(3200, "--steps", help="Optimiser steps."),
+    batch: int = typer.Option(16, "--batch", help="Scenes per step."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+):
+    """Segmentation network (background / foliage / wood); resumes from OUT/checkpoint.pt."""
+    from treeform.cli.progress import TrainProgress
+    from treeform.learn.train import train_seg
+
+    m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, steps=steps, batch=batch, seed=seed,
+                display=TrainProgress("seg"))
+    r, c = m.get("renders"), m.get("cutouts")
+    if r:
+        typer.echo(f"test renders: mean IoU {100 * r['mean_iou']:.1f} % "
+                   + ", ".join(f"{k} {100 * v:.1f} %" for k, v in r["iou"].items()))
+    if c:
+        typer.echo(f"test cut-outs: median tree IoU {c['tree_iou_median']:.3f} over {c['n']} scenes")
+    typer.echo(f"weights: {Path(out) / 'model.onnx'}")
+
+
+def _mask_cmd(kind: str, data, out, test_data, seg_weights, epochs, seed):
+    from treeform.cli.progress import TrainProgress
+    from treeform.learn.train_masks import train_masknet
+
+    m = run_api(train_masknet, kind, data, out, test_data=test_data, seg_weights=seg_weights, epochs=epochs, seed=seed,
+                display=TrainProgress(kind))
+    for which, name in (("gt", "true masks"), ("pred", "predicted masks")):
+        r = (m.get("test") or {}).get(which)
+        if r and kind == "species":
+            typer.echo(f"test {name}: accuracy {100 * r['accuracy']:.1f} %")
+        elif r:
+            typer.echo(f"test {name}: MAE per level " + " ".join(f"L{i + 1} {e:.2f} %" for i, e in enumerate(r["mae_percent"])))
+    typer.echo(f"weights: {Path(out) / 'model.onnx'}")
+
+
+_SEG_W = typer.Option(None, "--seg-weights", help="Segmentation ONNX: its predicted masks join training and testing.")
+
+
+def _register_mask_command(kind: str, doc: str) -> None:
+    def command(
+        data: Path = typer.Option(..., "--data", help="Training dataset (treeform dataset generate)."),
+        out: Path = typer.Option(..., "--out", "-o", help="Run directory."),
+        test_data: Optional[Path] = typer.Option(None, "--test-data", help="Held-out dataset (another seed)."),
+        seg_weights: Optional[Path] = _SEG_W,
+        epochs: int = typer.Option(40, "--epochs", help="Passes over the data."),
+        seed: int = typer.Option(0, "--seed", help="Random seed."),
+    ):
+        _mask_cmd(kind, data, out, test_data, seg_weights, epochs, seed)
+
+    command.__doc__ = doc
+    train_app.command(kind)(command)
+
+
+_register_mask_command("species", "Species CNN on semantic masks (7 species); resumes from OUT/checkpoint.pt.")
+_register_mask_command("rbv", "Cascaded RBV CNN (levels 1-5, Huber loss) on semantic masks; resumes from OUT/checkpoint.pt.")

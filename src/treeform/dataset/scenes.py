@@ -1,0 +1,447 @@
+"""Randomised scenes for training perception networks: trees over cluttered, photo-like backgrounds.
+
+The renders of :func:`~treeform.dataset.make_sample` are clean: one tree, a painted
+background, correct exposure. Real photos are not, and a network trained on clean renders
+alone labels autumn crowns as wood and houses as trees. :func:`compose_scene` therefore
+re-composites a tree *sprite* (an RGBA tree alone with its labels: a synthetic render from
+the dataset's ``rgba.png`` or a real photo cut-out) over a scene randomised as seed 003
+§4.2.2 asks ("augmentation ... to bridge the domain gap"), with everything the issue names:
+
+- **seasons**: the foliage recoloured to spring, summer, autumn yellow / orange / red /
+  purple, conifer blue-green, or thinned to a sparse crown (blobs of foliage removed);
+  bark tinted grey to dark brown;
+- **clutter**: the procedural skies, lawns, roads and buildings of
+  :func:`~treeform.dataset.procedural_background`, plus cars, people-sized figures,
+  hedges, lamp posts and lawn bands;
+- **framing**: the main tree whole in the frame (35–98 % of its height) or, in a third of
+  the scenes, a close-up that fills the frame and is cut by its edges;
+- **other trees labelled background**: large trees out of focus right behind the subject,
+  smaller, hazier trees standing further back, and large neighbour trees cut by the left or
+  right edge of the frame;
+- **camera**: haze, defocus blur, exposure, white balance and gamma errors, sensor
+  noise and JPEG artefacts.
+
+Labels: 0 background, 1 foliage, 2 wood and :data:`TREE_ANY` (3) for tree pixels whose
+part is unknown (photo cut-outs carry a tree mask only); the training loss scores those
+with the summed foliage + wood probability. Scenes without a main tree (``tree=None``)
+teach the network to answer "no tree".
+
+Everything random comes from the generator passed in: same inputs and seed -> same scene.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from treeform._shared.errors import InputError
+
+__all__ = ["Sprite", "TREE_ANY", "SEASONS", "compose_scene", "load_cutouts", "paste_on_photo", "sprite_from_render",
+           "recolor_season", "cutout_split"]
+
+TREE_ANY = 3
+"""Label of a tree pixel whose part (foliage or wood) is unknown."""
+
+SEASONS = ("summer", "spring", "yellow", "orange", "red", "purple", "bluegreen", "sparse")
+"""Foliage looks drawn by :func:`recolor_season`."""
+
+# target hue (degrees), saturation scale, value scale per season
+_SEASON_HSV = {"spring": (85, 1.1, 1.15), "yellow": (50, 1.25, 1.15), "orange": (30, 1.35, 1.0),
+               "red": (5, 1.3, 0.85), "purple": (325, 0.9, 0.6), "bluegreen": (165, 0.55, 0.85)}
+
+
+@dataclass
+class Sprite:
+    """A tree alone: ``rgba`` (h, w, 4) uint8 cropped to its alpha, ``labels`` (h, w) uint8.
+
+    ``labels`` holds 1 foliage / 2 wood for synthetic renders, :data:`TREE_ANY` for cut-outs
+    (0 outside the tree).
+    """
+
+    rgba: np.ndarray
+    labels: np.ndarray
+    name: str = ""
+
+
+def _crop(rgba: np.ndarray, labels: np.ndarray, name: str) -> Sprite | None:
+    ys, xs = np.nonzero(rgba[..., 3] > 0)
+    if ys.size < 16:
+        return None
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    return Sprite(np.ascontiguousarray(rgba[y0:y1, x0:x1]), np.ascontiguousarray(labels[y0:y1, x0:x1]), name)
+
+
+def sprite_from_render(rgba: np.ndarray, mask: np.ndarray, name: str = "") -> Sprite | None:
+    """A synthetic sample's tree alone (``rgba`` from the shard) with its 0/1/2 ``mask``."""
+    lab = np.where(rgba[..., 3] >= 128, mask, 0).astype(np.uint8)
+    return _crop(rgba, lab, name)
+
+
+def cutout_split(name: str, *, test_fraction: float = 0.25) -> str:
+    """'train' or 'test' for a cut-out file name, by tree identity (atlas + column).
+
+    The rows of an atlas are seasons of the same eight trees, so all rows of one column go
+    to the same split; the split is a fixed hash, independent of the machine and order.
+
+    >>> cutout_split("deciduous_row0_col3.png") == cutout_split("deciduous_row3_col3.png")
+    True
+    """
+    stem = Path(name).stem
+    ident = stem.split("_row")[0] + "_col" + stem.rsplit("_col", 1)[-1] if "_row" in stem else stem
+    h = zlib.crc32(ident.encode()) % 1000
+    return "test" if h < test_fraction * 1000 else "train"
+
+
+def load_cutouts(folder, *, split: str | None = None, recursive: bool = True) -> list[Sprite]:
+    """RGBA tree cut-outs of a folder as sprites (tree mask = alpha >= 1/2, part unknown).
+
+    Parameters
+    ----------
+    folder : path
+        PNG files with an alpha channel (e.g. ``../shared/data/billboards``).
+    split : {'train', 'test'}, optional
+        Keep only that side of :func:`cutout_split`.
+    """
+    from PIL import Image
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"cut-outs {folder}: not a directory")
+    files = sorted(folder.rglob("*.png") if recursive else folder.glob("*.png"))
+    out = []
+    for f in files:
+        if split is not None and cutout_split(f.name) != split:
+            continue
+        with Image.open(f) as im:
+            if "A" not in im.getbands():
+                continue
+            rgba = np.asarray(im.convert("RGBA"), np.uint8)
+        if max(rgba.shape[:2]) > 512:  # large cut-outs: keep them a handy size
+            s = 512 / max(rgba.shape[:2])
+            rgba = cv2.resize(rgba, (max(1, round(rgba.shape[1] * s)), max(1, round(rgba.shape[0] * s))),
+                              interpolation=cv2.INTER_AREA)
+        lab = np.where(rgba[..., 3] >= 128, TREE_ANY, 0).astype(np.uint8)
+        sp = _crop(rgba, lab, f.name)
+        if sp is not None:
+            out.append(sp)
+    if not out:
+        raise InputError(f"cut-outs {folder}: no RGBA PNG files{'' if split is None else f' in split {split!r}'}")
+    return out
+
+
+# ------------------------------------------------------------------------------ tree looks
+def _smooth_noise(rng, h: int, w: int, scale: float) -> np.ndarray:
+    """Low-frequency noise in [0, 1], features ~ ``scale`` pixels."""
+    gh, gw = max(2, int(h / scale) + 2), max(2, int(w / scale) + 2)
+    n = cv2.resize(rng.random((gh, gw)).astype(np.float32), (w, h), interpolation=cv2.INTER_CUBIC)
+    return np.clip(n, 0, 1)
+
+
+def recolor_season(rgb: np.ndarray, foliage: np.ndarray, season: str, rng) -> np.ndarray:
+    """Recolour the ``foliage`` pixels of an (h, w, 3) uint8 image to a season's look.
+
+    Hue moves to the season's hue (keeping half the leaf's own hue variation, plus a
+    low-frequency patchiness), saturation and value are scaled. 'summer' jitters the hue a
+    little; 'sparse' leaves the colour alone (thinning happens in :func:`compose_scene`).
+    """
+    if season not in SEASONS:
+        raise InputError(f"season: expected one of {', '.join(SEASONS)}, got {season!r}")
+    out = rgb.copy()
+    if season in ("sparse",) or not foliage.any():
+        return out
+    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV_FULL).astype(np.float32)  # H in 0..255
+    hdeg = hsv[..., 0] * (360.0 / 256.0)
+    h0 = float(np.median(hdeg[foliage]))
+    if season == "summer":
+        target, s_mul, v_mul = h0 + rng.uniform(-12, 12), rng.uniform(0.8, 1.15), rng.uniform(0.85, 1.1)
+    else:
+        target, s_mul, v_mul = _SEASON_HSV[season]
+        target += rng.uniform(-8, 8)
+        s_mul *= rng.uniform(0.85, 1.15)
+        v_mul *= rng.uniform(0.85, 1.15)
+    patch = _smooth_noise(rng, *rgb.shape[:2], max(4.0, rgb.shape[0] / rng.uniform(3, 10)))
+    mix_hue = target + (patch - 0.5) * rng.uniform(0, 50)
+    dh = ((hdeg - h0 + 180.0) % 360.0) - 180.0
+    new_h = (mix_hue + 0.5 * dh) % 360.0
+    s = hsv[..., 1]
+    if season != "summer":
+        s = np.maximum(s, 70.0)  # grey-green needles still take the colour
+    new_s = np.clip(s * s_mul, 0, 255)
+    new_v = np.clip(hsv[..., 2] * v_mul, 0, 255)
+    rec = np.stack([new_h * (256.0 / 360.0) % 256.0, new_s, new_v], -1).astype(np.uint8)
+    rec = cv2.cvtColor(rec, cv2.COLOR_HSV2RGB_FULL)
+    out[foliage] = rec[foliage]
+    return out
+
+
+def _foliage_pixels(sprite: Sprite) -> np.ndarray:
+    """Foliage of a sprite: its label 1, or for cut-outs the green-to-yellow, saturated pixels."""
+    if (sprite.labels == TREE_ANY).any():
+        hsv = cv2.cvtColor(np.ascontiguousarray(sprite.rgba[..., :3]), cv2.COLOR_RGB2HSV_FULL)
+        hdeg = hsv[..., 0].astype(np.float32) * (360.0 / 256.0)
+        return (sprite.labels > 0) & (hdeg > 45) & (hdeg < 200) & (hsv[..., 1] > 30)
+    return sprite.labels == 1
+
+
+def _tree_look(sprite: Sprite, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Season, bark tint and thinning applied to a sprite: (rgba float [0, 1], labels)."""
+    rgba = sprite.rgba.copy()
+    labels = sprite.labels.copy()
+    season = str(rng.choice(SEASONS, p=[0.3, 0.1, 0.12, 0.12, 0.1, 0.06, 0.1, 0.1]))
+    fol = _foliage_pixels(sprite)
+    rgba[..., :3] = recolor_season(np.ascontiguousarray(rgba[..., :3]), fol, season, rng)
+    wood = labels == 2
+    if wood.any() and rng.random() < 0.6:
+        tint = rng.uniform(0.55, 1.25) * np.clip(rng.normal(1.0, 0.1, 3), 0.75, 1.25)
+        rgba[..., :3][wood] = np.clip(rgba[..., :3][wood] * tint, 0, 255).astype(np.uint8)
+    if season == "sparse" and labels.max() <= 2 and fol.any():
+        # thin the crown: drop blobs of foliage; wood behind a dropped leaf is not in the render, so the
+        # dropped pixels become background (gaps in the crown)
+        keep = _smooth_noise(rng, *labels.shape, max(3.0, labels.shape[0] / rng.uniform(8, 25)))
+        drop = fol & (keep < rng.uniform(0.3, 0.6))
+        rgba[drop, 3] = 0
+        labels[drop] = 0
+    return rgba.astype(np.float32) / 255.0, labels
+
+
+# ------------------------------------------------------------------------------ pasting
+def _paste(canvas: np.ndarray, lab: np.ndarray | None, rgba: np.ndarray, labels: np.ndarray | None,
+           height_px: float, cx: float, base_y: float, *, label_value=None, haze=0.0, haze_col=None,
+           blur=0.0) -> None:
+    """Scale a sprite to ``height_px`` and composite it with its foot at (cx, base_y), in place.
+
+    ``lab`` receives the sprite's labels (or ``label_value`` where it is opaque); ``haze``
+    blends the sprite toward ``haze_col`` (aerial perspective), ``blur`` defocuses it.
+    """
+    H, W = canvas.shape[:2]
+    h0, w0 = rgba.shape[:2]
+    s = max(height_px, 4.0) / h0
+    nh, nw = max(2, int(round(h0 * s))), max(2, int(round(w0 * s)))
+    interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
+    pre = rgba.copy()
+    pre[..., :3] *= pre[..., 3:4]  # premultiplied for resampling
+    r = cv2.resize(pre, (nw, nh), interpolation=interp)
+    if blur > 0.3:
+        r = cv2.GaussianBlur(r, (0, 0), blur)
+    a = np.clip(r[..., 3:4], 0, 1)
+    col = r[..., :3] / np.maximum(a, 1e-4)
+    if haze > 0:
+        col = col * (1 - haze) + np.asarray(haze_col, np.float32) * haze
+    x0, y0 = int(round(cx - nw / 2)), int(round(base_y - nh))
+    ys, xs = max(0, y0), max(0, x0)
+    ye, xe = min(H, y0 + nh), min(W, x0 + nw)
+    if ye <= ys or xe <= xs:
+        return
+    sl = (slice(ys - y0, ye - y0), slice(xs - x0, xe - x0))
+    aa = a[sl]
+    canvas[ys:ye, xs:xe] = canvas[ys:ye, xs:xe] * (1 - aa) + col[sl] * aa
+    if lab is not None:
+        if labels is not None:
+            lr = cv2.resize(labels, (nw, nh), interpolation=cv2.INTER_NEAREST)[sl]
+            opaque = (aa[..., 0] >= 0.5) & (lr > 0)
+            lab[ys:ye, xs:xe][opaque] = lr[opaque]
+            # a pixel the sprite covers but does not label (coverage < 1/2 at the source) is left as it was
+        else:
+            opaque = aa[..., 0] >= 0.5
+            lab[ys:ye, xs:xe][opaque] = label_value
+
+
+def _hsv(h, s, v):
+    return np.array(colorsys.hsv_to_rgb(h % 1.0, float(np.clip(s, 0, 1)), float(np.clip(v, 0, 1))), np.float32)
+
+
+def _clutter(img: np.ndarray, horizon: int, rng) -> None:
+    """Cars, people-sized figures, hedges, lamp posts and lawn bands on the ground (in place)."""
+    H, W = img.shape[:2]
+    ground = max(horizon, int(0.5 * H))
+    for _ in range(int(rng.integers(0, 4))):
+        kind = rng.choice(["car", "person", "hedge", "post", "lawn"], p=[0.3, 0.25, 0.2, 0.1, 0.15])
+        y = int(rng.uniform(ground, H * 1.02))
+        x = int(rng.uniform(-0.1, 1.1) * W)
+        scale = (y - horizon * 0.9) / H + 0.15
+        if kind == "car":
+            cw, ch = int(W * rng.uniform(0.15, 0.35) * scale * 1.6), int(H * rng.uniform(0.05, 0.09) * scale * 1.6)
+            body = _hsv(rng.random(), rng.uniform(0, 0.9), rng.uniform(0.1, 0.95))
+            cv2.rectangle(img, (x - cw // 2, y - ch), (x + cw // 2, y - ch // 4), body.tolist(), -1)
+            cv2.rectangle(img, (x - cw // 3, y - int(ch * 1.6)), (x + cw // 4, y - ch), (body * 0.8).tolist(), -1)
+            cv2.rectangle(img, (x - cw // 3 + 2, y - int(ch * 1.5)), (x + cw // 4 - 2, y - ch),
+                          _hsv(0.58, 0.2, rng.uniform(0.15, 0.5)).tolist(), -1)
+            for wx in (x - cw // 3, x + cw // 3):
+                cv2.circle(img, (wx, y - ch // 4), max(2, ch // 3), (0.05, 0.05, 0.05), -1)
+        elif kind == "person":
+            ph = int(H * rng.uniform(0.08, 0.2) * scale * 1.5)
+            pw = max(2, ph // 4)
+            cloth = _hsv(rng.random(), rng.uniform(0, 0.8), rng.uniform(0.1, 0.9))
+            cv2.rectangle(img, (x - pw // 2, y - int(ph * 0.85)), (x + pw // 2, y - ph // 2), cloth.tolist(), -1)
+            cv2.rectangle(img, (x - pw // 2, y - ph // 2), (x + pw // 2, y), (cloth * 0.6).tolist(), -1)
+            cv2.circle(img, (x, y - int(ph * 0.92)), max(1, pw // 2), _hsv(0.07, 0.4, rng.uniform(0.3, 0.9)).tolist(), -1)
+        elif kind == "hedge":
+            hh = int(H * rng.uniform(0.04, 0.12) * scale * 1.5)
+            xs = np.arange(W)
+            top = y - hh * (0.8 + 0.2 * np.sin(xs / rng.uniform(3, 12) + rng.uniform(0, 6)))
+            x0, x1 = sorted((int(rng.uniform(-0.2, 0.6) * W), int(rng.uniform(0.4, 1.2) * W)))
+            col = _hsv(rng.uniform(0.18, 0.4), rng.uniform(0.3, 0.7), rng.uniform(0.15, 0.45))
+            rows = np.arange(H)[:, None]
+            band = (rows >= top[None, :]) & (rows <= y) & (xs[None, :] >= x0) & (xs[None, :] <= x1)
+            tex = 0.8 + 0.4 * rng.random((H, W, 1)).astype(np.float32)
+            img[band] = (col * tex)[band]
+        elif kind == "post":
+            ph = int(H * rng.uniform(0.2, 0.5))
+            col = _hsv(0, 0, rng.uniform(0.1, 0.6)).tolist()
+            cv2.line(img, (x, y), (x, y - ph), col, max(1, int(W * 0.006)))
+            cv2.line(img, (x, y - ph), (x + int(W * 0.04), y - ph), col, max(1, int(W * 0.005)))
+        else:  # a band of lawn of another green
+            bh = int(H * rng.uniform(0.03, 0.1))
+            col = _hsv(rng.uniform(0.17, 0.33), rng.uniform(0.3, 0.7), rng.uniform(0.25, 0.7))
+            img[max(0, y - bh):y] = img[max(0, y - bh):y] * 0.3 + col * 0.7
+
+
+def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int = 256,
+                  background: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One randomised training scene: the main ``tree`` over clutter and other trees.
+
+    Parameters
+    ----------
+    tree : Sprite or None
+        The tree to label; None gives a scene without a main tree (all background).
+    others : list of Sprite
+        Pool of sprites drawn for background trees and edge neighbours (labelled background).
+    rng : numpy.random.Generator
+    size : int
+        Edge of the square scene.
+    background : ndarray, shape (size, size, 3), uint8, optional
+        A ready background (e.g. from a pre-drawn pool); default: a new
+        :func:`~treeform.dataset.procedural_background`.
+
+    Returns
+    -------
+    image : ndarray, shape (size, size, 3), uint8
+    labels : ndarray, shape (size, size), uint8
+        0 background, 1 foliage, 2 wood, :data:`TREE_ANY` tree of unknown part.
+    """
+    from treeform.dataset.backgrounds import procedural_background
+
+    S = int(size)
+    if background is None:
+        background = procedural_background(S, seed=rng)
+    img = background.astype(np.float32) / 255.0
+    if rng.random() < 0.5:
+        img = img[:, ::-1].copy()
+    # the horizon: where the background's top rows stop looking like its sky (rough, for placement)
+    horizon = int(S * rng.uniform(0.45, 0.8))
+    _clutter(img, horizon, rng)
+    lab = np.zeros((S, S), np.uint8)
+    sky_col = img[: max(2, S // 8)].reshape(-1, 3).mean(0)
+
+    def other():
+        sp = others[int(rng.integers(len(others)))]
+        rgba, _ = _tree_look(sp, rng)
+        if rng.random() < 0.5:
+            rgba = rgba[:, ::-1]
+        return np.ascontiguousarray(rgba)
+
+    # trees out of focus right behind the subject (a park, a tree line close by): large, blurred
+    if others and rng.random() < 0.35:
+        for _ in range(int(rng.integers(1, 4))):
+            _paste(img, None, other(), None, S * rng.uniform(0.7, 2.0), rng.uniform(-0.2, 1.2) * S,
+                   S * rng.uniform(0.8, 1.6), haze=rng.uniform(0.0, 0.3), haze_col=sky_col,
+                   blur=S / 256 * rng.uniform(2.0, 7.0))
+    # distant trees behind: smaller, hazier, softer
+    if others:
+        for _ in range(int(rng.choice([0, 1, 2, 3, 5], p=[0.3, 0.25, 0.2, 0.15, 0.1]))):
+            _paste(img, None, other(), None, S * rng.uniform(0.12, 0.55), rng.uniform(-0.1, 1.1) * S,
+                   horizon + rng.uniform(-0.02, 0.08) * S, haze=rng.uniform(0.1, 0.6), haze_col=sky_col,
+                   blur=rng.uniform(0.0, 2.0))
+    tree_box = None
+    if tree is not None:
+        rgba, labels = _tree_look(tree, rng)
+        if rng.random() < 0.5:
+            rgba, labels = rgba[:, ::-1], labels[:, ::-1]
+        # (small photo cut-outs are not blown up into close-ups: they would be blurred beyond any photo)
+        close_up = rng.random() < 0.35 and rgba.shape[0] >= 0.6 * S
+        if close_up:
+            # the photographer stands close: the tree fills the frame and is cut by its edges
+            hpx = S * rng.uniform(1.0, 1.9)
+            w_px = hpx * rgba.shape[1] / rgba.shape[0]
+            cx = S / 2 + rng.uniform(-0.15, 0.15) * S
+            base = S * rng.uniform(0.85, 1.3)
+        else:
+            hpx = S * rng.uniform(0.35, 0.98)
+            w_px = hpx * rgba.shape[1] / rgba.shape[0]
+            if w_px > 0.98 * S:  # wide crowns: keep the crown (mostly) in the frame
+                hpx *= 0.98 * S / w_px
+                w_px = 0.98 * S
+            slack = max(0.0, (S - w_px) / 2)
+            cx = S / 2 + rng.uniform(-1, 1) * min(slack, 0.3 * S)
+            base = rng.uniform(max(hpx, 0.6 * S), 1.06 * S)
+        # neighbours at the frame edges, behind the main tree, smaller than it, labelled background
+        if others and not close_up and rng.random() < 0.35:
+            for side in rng.permutation([-1, 1])[: int(rng.integers(1, 3))]:
+                nh = min(S * rng.uniform(0.5, 1.1), hpx * rng.uniform(0.6, 1.0))
+                ncx = (0 if side < 0 else S) + side * rng.uniform(0.0, 0.3) * nh
+                _paste(img, None, other(), None, nh, ncx, rng.uniform(0.85, 1.05) * S,
+                       haze=rng.uniform(0.0, 0.25), haze_col=sky_col, blur=rng.uniform(0, 1.0))
+        # a soft ground shadow at the foot
+        if base < S and rng.random() < 0.6:
+            sh = np.zeros((S, S), np.float32)
+            cv2.ellipse(sh, (int(cx), int(base)), (int(w_px * rng.uniform(0.3, 0.6)), int(S * 0.03) + 1), 0, 0, 360,
+                        1.0, -1)
+            sh = cv2.GaussianBlur(sh, (0, 0), 3)[..., None] * rng.uniform(0.2, 0.6)
+            img *= 1 - sh
+        _paste(img, lab, rgba, labels, hpx, cx, base)
+    elif others and rng.random() < 0.3:  # no main tree, but a neighbour cut by an edge
+        side = -1 if rng.random() < 0.5 else 1
+        nh = S * rng.uniform(0.5, 1.1)
+        _paste(img, None, other(), None, nh, (0 if side < 0 else S) + side * rng.uniform(0.05, 0.3) * nh,
+               rng.uniform(0.85, 1.05) * S, haze=rng.uniform(0.0, 0.25), haze_col=sky_col)
+
+    # -- camera: haze, defocus, exposure, white balance, gamma, noise, JPEG
+    if rng.random() < 0.3:
+        hz = rng.uniform(0.05, 0.3)
+        img = img * (1 - hz) + hz * sky_col
+    if rng.random() < 0.3:
+        img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.4, 1.3))
+    img = img * rng.uniform(0.55, 1.5) * np.clip(rng.normal(1.0, 0.08, 3), 0.75, 1.25)
+    img = np.clip(img, 0, 1) ** rng.uniform(0.75, 1.35)
+    img = img * 255.0 + rng.normal(0, rng.uniform(0, 5), img.shape)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if rng.random() < 0.6:
+        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(25, 95))])
+        out = np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
+    return out, lab
+
+
+def paste_on_photo(sprite: Sprite, photo: np.ndarray, rng, *, size: int = 512,
+                   blur: tuple = (2.0, 6.0)) -> tuple[np.ndarray, np.ndarray]:
+    """A real-texture test image with an exact mask: ``sprite`` pasted over a blurred photo crop.
+
+    The photo (any RGB uint8 image) is cropped to a random square of at least half its
+    short side, scaled to ``size`` and blurred (sigma drawn from ``blur``, in pixels at
+    ``size``: the background is out of focus, as behind a photographed tree); the sprite
+    is pasted at a random height (40–95 % of the frame) and position, its foot in the
+    lower part of the frame. Returns the image (size, size, 3) uint8 and the tree mask
+    (size, size) bool (coverage >= 1/2).
+    """
+    S = int(size)
+    H, W = photo.shape[:2]
+    side = int(min(H, W) * rng.uniform(0.5, 1.0))
+    y, x = int(rng.integers(0, H - side + 1)), int(rng.integers(0, W - side + 1))
+    bg = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
+    img = cv2.GaussianBlur(bg.astype(np.float32) / 255.0, (0, 0), rng.uniform(*blur))
+    lab = np.zeros((S, S), np.uint8)
+    rgba = sprite.rgba.astype(np.float32) / 255.0
+    hpx = S * rng.uniform(0.4, 0.95)
+    w_px = hpx * rgba.shape[1] / rgba.shape[0]
+    if w_px > 0.95 * S:
+        hpx *= 0.95 * S / w_px
+        w_px = 0.95 * S
+    cx = rng.uniform(w_px / 2, S - w_px / 2) if w_px < S else S / 2
+    base = rng.uniform(max(hpx, 0.7 * S), S)
+    _paste(img, lab, rgba, np.where(sprite.labels > 0, TREE_ANY, 0).astype(np.uint8), hpx, cx, base)
+    out = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+    return out, lab > 0

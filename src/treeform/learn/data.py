@@ -1,0 +1,134 @@
+"""Training and test data of the perception networks, from our own synthetic datasets.
+
+- :func:`render_sprites` reads the trees alone (``rgba.png`` + ``mask.png``) of a dataset
+  made by ``treeform dataset generate``;
+- :class:`SceneStream` turns sprites into an endless, reproducible stream of randomised
+  scenes (:func:`treeform.dataset.scenes.compose_scene`), one chunk per round, over a pool
+  of procedural backgrounds that is refreshed as it goes;
+- :func:`test_scenes` is the fixed test split: held-out trees (another dataset seed) and
+  held-out cut-out identities over scenes of a fixed seed.
+
+numpy only (no torch): the benchmark and the tests use it too.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+
+__all__ = ["render_sprites", "SceneStream", "test_scenes", "default_cutouts"]
+
+
+def default_cutouts() -> Path | None:
+    """``../shared/data/billboards`` next to a source checkout, when it exists (else None)."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent.parent / "shared" / "data" / "billboards"
+        if cand.is_dir():
+            return cand
+    return None
+
+
+def render_sprites(directory, *, limit: int | None = None) -> list:
+    """Sprites (tree alone + 0/1/2 labels) of a generated dataset; needs ``rgba.png`` members."""
+    from treeform.dataset.loader import SyntheticDataset
+    from treeform.dataset.scenes import sprite_from_render
+    from treeform.dataset.storage import decode_sample
+
+    ds = SyntheticDataset(directory)
+    n = len(ds) if limit is None else min(limit, len(ds))
+    out = []
+    for i in range(n):
+        d = decode_sample(ds.members(i, ("mask.png", "rgba.png")))
+        if "rgba" not in d:
+            raise InputError(f"{directory}: samples lack the tree-alone rgba.png (regenerate with this version)")
+        sp = sprite_from_render(d["rgba"], d["mask"], f"{Path(directory).name}:{i}")
+        if sp is not None:
+            out.append(sp)
+    if not out:
+        raise InputError(f"{directory}: no usable samples")
+    return out
+
+
+class SceneStream:
+    """Reproducible randomised scenes: chunk ``r`` depends only on (seed, r) and the sprites.
+
+    Parameters
+    ----------
+    renders, cutouts : list of Sprite
+        Main trees: synthetic renders (foliage / wood labels) and photo cut-outs (tree only).
+    size : int
+    seed : int
+    cutout_fraction : float
+        Share of scenes whose main tree is a cut-out (when there are any).
+    negatives : float
+        Share of scenes with no main tree.
+    pool : int
+        Procedural backgrounds kept; ``pool // 8`` are redrawn per chunk.
+    """
+
+    def __init__(self, renders, cutouts=(), *, size: int = 224, seed: int = 0, cutout_fraction: float = 0.35,
+                 negatives: float = 0.08, pool: int = 256):
+        self.renders, self.cutouts = list(renders), list(cutouts)
+        if not self.renders and not self.cutouts:
+            raise InputError("no tree sprites to compose scenes from")
+        self.size, self.seed = int(size), int(seed)
+        self.cutout_fraction = cutout_fraction if self.cutouts else 0.0
+        self.negatives = negatives
+        self.pool_size = int(pool)
+        self._pool: list | None = None
+
+    def _background(self, k: int):
+        from treeform.dataset.backgrounds import procedural_background
+
+        return procedural_background(self.size, seed=np.random.default_rng([self.seed, 8, k]))
+
+    def chunk(self, r: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Scenes of round ``r``: images (n, S, S, 3) uint8 and labels (n, S, S) uint8."""
+        from treeform.dataset.scenes import compose_scene
+
+        # the pool after round r holds backgrounds r*step .. r*step + pool - 1 (deterministic per round)
+        step = max(1, self.pool_size // 8)
+        first = r * step
+        keys = list(range(first, first + self.pool_size))
+        if self._pool is None or self._pool[0] != keys:
+            old = dict(zip(self._pool[0], self._pool[1])) if self._pool else {}
+            self._pool = (keys, [old[k] if k in old else self._background(k) for k in keys])
+        bgs = self._pool[1]
+        rng = np.random.default_rng([self.seed, 7, r])
+        others = self.renders + self.cutouts
+        imgs = np.empty((n, self.size, self.size, 3), np.uint8)
+        labs = np.empty((n, self.size, self.size), np.uint8)
+        for i in range(n):
+            u = rng.random()
+            if u < self.negatives:
+                tree = None
+            elif u < self.negatives + self.cutout_fraction:
+                tree = self.cutouts[int(rng.integers(len(self.cutouts)))]
+            else:
+                pool = self.renders or self.cutouts
+                tree = pool[int(rng.integers(len(pool)))]
+            imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size,
+                                             background=bgs[int(rng.integers(len(bgs)))])
+        return imgs, labs
+
+
+def test_scenes(renders, cutouts=(), *, n: int = 400, size: int = 224, seed: int = 90210) -> dict:
+    """The fixed test split: ``n`` scenes from held-out sprites with a seed training never uses.
+
+    Returns ``{"renders": (images, labels), "cutouts": (images, labels)}``: scenes whose
+    main tree is a synthetic render (foliage / wood labels: mean IoU) and scenes whose
+    main tree is a real cut-out (tree-vs-background IoU), ``n // 2`` each when both exist.
+    """
+    out = {}
+    groups = [("renders", list(renders)), ("cutouts", list(cutouts))]
+    groups = [(k, v) for k, v in groups if v]
+    for j, (name, sprites) in enumerate(groups):
+        stream = SceneStream(sprites if name == "renders" else [], sprites if name == "cutouts" else [],
+                             size=size, seed=seed + j, cutout_fraction=1.0 if name == "cutouts" else 0.0,
+                             negatives=0.0, pool=64)
+        out[name] = stream.chunk(0, n // len(groups))
+    return out

@@ -1,0 +1,170 @@
+"""Inference of the shipped perception networks with onnxruntime (no torch).
+
+The weights are ONNX graphs inside the package (``treeform/learn/weights/*.onnx``), built by
+``make weights``. A missing or unreadable file raises :class:`ModelError` naming the file
+and the command that rebuilds it.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError, ModelError
+
+__all__ = ["WEIGHTS", "weights_path", "Segmenter", "load_session", "main_tree", "predict_species", "predict_rbv"]
+
+WEIGHTS = {"seg": "seg.onnx", "species": "species.onnx", "rbv": "rbv.onnx"}
+"""File name of each network's shipped weights."""
+
+
+def weights_path(kind: str) -> Path:
+    """Path of the shipped weights of network ``kind`` ('seg', 'species', 'rbv')."""
+    if kind not in WEIGHTS:
+        raise InputError(f"network: expected one of {', '.join(WEIGHTS)}, got {kind!r}")
+    return Path(__file__).resolve().parent / "weights" / WEIGHTS[kind]
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_session(path: str, mtime: float):
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        raise ModelError("the networks need onnxruntime: pip install onnxruntime") from None
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = max(1, min(4, os.cpu_count() or 1))
+    opts.inter_op_num_threads = 1
+    opts.log_severity_level = 3
+    try:
+        sess = ort.InferenceSession(path, sess_options=opts, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises its own Fail/InvalidProtobuf types
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ModelError(f"{path}: not a readable ONNX model ({first[:120]}); rebuild the weights with `make weights`") from None
+    meta = dict(sess.get_modelmeta().custom_metadata_map)
+    return sess, meta
+
+
+def load_session(path) -> tuple:
+    """(onnxruntime session, metadata dict) for an ONNX file; cached while the file is unchanged."""
+    p = Path(path)
+    if not p.is_file():
+        raise ModelError(f"{p}: network weights missing; build them with `make weights`")
+    return _cached_session(str(p.resolve()), p.stat().st_mtime)
+
+
+def _components(mask: np.ndarray):
+    import cv2
+
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    return n, lab, stats
+
+
+def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002) -> np.ndarray:
+    """The main tree of a binary tree mask: its largest connected part plus the parts beside it.
+
+    A crown seen through sky gaps falls apart into pieces; pieces that overlap the largest
+    part's bounding box (grown by 10 %) and hold at least 1 % of its area are kept. Pieces
+    smaller than ``min_fraction`` of the image are dropped as noise.
+
+    >>> m = np.zeros((20, 20), bool); m[2:15, 2:6] = True; m[5:8, 17:19] = True
+    >>> int(main_tree(m).sum())
+    52
+    """
+    tree = np.asarray(tree, bool)
+    n, lab, stats = _components(tree)
+    if n <= 1:
+        return np.zeros_like(tree)
+    areas = stats[1:, 4]
+    big = int(np.argmax(areas)) + 1
+    x, y, w, h, a = stats[big]
+    gx, gy = 0.1 * w, 0.1 * h
+    keep = np.zeros(n, bool)
+    keep[big] = True
+    for k in range(1, n):
+        kx, ky, kw, kh, ka = stats[k]
+        if ka < max(0.01 * a, min_fraction * tree.size):
+            continue
+        if kx < x + w + gx and kx + kw > x - gx and ky < y + h + gy and ky + kh > y - gy:
+            keep[k] = True
+    return keep[lab]
+
+
+class Segmenter:
+    """The learned segmenter (background / foliage / wood) on onnxruntime.
+
+    Parameters
+    ----------
+    path : path, optional
+        ONNX weights; default the shipped ``seg.onnx``.
+    side : int, optional
+        Long side, in pixels, at which the network sees the photo (default: the model's
+        ``infer_side`` metadata, else 320).
+    """
+
+    def __init__(self, path=None, *, side: int | None = None):
+        self.path = Path(path) if path is not None else weights_path("seg")
+        self.session, self.meta = load_session(self.path)
+        self.side = int(side or self.meta.get("infer_side", 320))
+
+    def probabilities(self, image: np.ndarray) -> np.ndarray:
+        """(H, W, 3) float32 class probabilities of an (H, W, 3) uint8 RGB image, at its size."""
+        import cv2
+
+        img = np.asarray(image)
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
+        H, W = img.shape[:2]
+        s = self.side / max(H, W)
+        h, w = max(8, int(round(H * s))), max(8, int(round(W * s)))
+        small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+        ph, pw = (-h) % 8, (-w) % 8
+        if ph or pw:
+            small = cv2.copyMakeBorder(small, 0, ph, 0, pw, cv2.BORDER_REFLECT_101)
+        x = small.astype(np.float32).transpose(2, 0, 1)[None] / 255.0
+        logits = self.session.run(None, {"image": x})[0][0, :, :h, :w]
+        z = logits - logits.max(0, keepdims=True)
+        p = np.exp(z)
+        p /= p.sum(0, keepdims=True)
+        p = np.ascontiguousarray(p.transpose(1, 2, 0))
+        return cv2.resize(p, (W, H), interpolation=cv2.INTER_LINEAR) if (h, w) != (H, W) else p
+
+    def predict_labels(self, image: np.ndarray, *, keep_main: bool = True) -> np.ndarray:
+        """(H, W) uint8 labels 0 background / 1 foliage / 2 wood; only the main tree when ``keep_main``."""
+        p = self.probabilities(image)
+        tree = p[..., 0] < 0.5
+        if keep_main:
+            tree = main_tree(tree)
+        lab = np.where(p[..., 2] > p[..., 1], 2, 1).astype(np.uint8)
+        return np.where(tree, lab, 0).astype(np.uint8)
+
+
+def _mask_run(kind: str, labels: np.ndarray, weights=None) -> np.ndarray:
+    from treeform.learn.masks import mask_input
+
+    sess, _ = load_session(weights if weights is not None else weights_path(kind))
+    x = mask_input(labels)[None]
+    return sess.run(None, {"mask": x})[0][0]
+
+
+def predict_species(labels: np.ndarray, *, weights=None) -> dict:
+    """Species probabilities ``{name: p}`` (best first) of a 0/1/2 label image (seed 003 §4.2.4)."""
+    from treeform.growth.species import SPECIES
+
+    z = _mask_run("species", labels, weights).astype(np.float64)
+    p = np.exp(z - z.max())
+    p /= p.sum()
+    order = np.argsort(-p, kind="stable")
+    return {SPECIES[i]: float(p[i]) for i in order}
+
+
+def predict_rbv(labels: np.ndarray, *, weights=None) -> list:
+    """RBV levels 1..5 (height-normalised radii, (1, 1) .. (16, 16)) of a 0/1/2 label image (seed 003 §4.2.3)."""
+    flat = _mask_run("rbv", labels, weights)
+    out, i = [], 0
+    for s in (1, 2, 4, 8, 16):
+        out.append(np.clip(flat[i:i + s * s].reshape(s, s).astype(np.float64), 0.0, None))
+        i += s * s
+    return out

@@ -1,0 +1,96 @@
+"""Stages shared by the single-photo methods (envelope 001, learned 003): photo in, segmentation, cameras.
+
+- :func:`load_photo` — a path / array / Photo reduced to a working size, and an optional user mask;
+- :func:`segment_or_mask` — the automatic segmentation, or the user's mask labelled;
+- :func:`photo_camera` — the camera that took the photo, in a world where the trunk base is the origin;
+- :func:`side_top_cameras` — the preview's side and top views.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform.structures import Camera, Photo
+
+__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "side_top_cameras"]
+
+
+def as_photo(photo, max_size: int) -> Photo:
+    from treeform.io.images import read_photo
+
+    if isinstance(photo, Photo):
+        return photo
+    if isinstance(photo, np.ndarray):
+        if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
+            raise InputError(f"photo: expected an (H, W, 3) uint8 array, got {photo.shape} {photo.dtype}")
+        return Photo(np.ascontiguousarray(photo))
+    return read_photo(photo, max_size=max_size)
+
+
+def fit_photo(photo: Photo, max_size: int) -> Photo:
+    """Downscale so the long side is at most ``max_size``."""
+    h, w = photo.shape
+    s = max_size / max(h, w)
+    if s >= 1:
+        return photo
+    from PIL import Image
+
+    im = Image.fromarray(photo.image).resize((max(1, round(w * s)), max(1, round(h * s))), Image.LANCZOS)
+    return Photo(np.asarray(im), photo.source, photo.scale * s)
+
+
+def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: float) -> tuple[Camera, float]:
+    """The camera that took the photo, in a world where the trunk base is the origin.
+
+    The tree spans ``layout.height_px`` pixels and is ``tree_height`` metres tall, which
+    fixes metres per pixel m on the plane z = 0 through the trunk; the camera at distance
+    D = focal · m on +Z looks along -Z at that plane, so the plane maps onto the photo
+    pixel for pixel.
+
+    Returns
+    -------
+    camera : Camera
+    m : float
+        Metres per pixel on the z = 0 plane.
+    """
+    m = tree_height / layout.height_px
+    focal = 0.5 * height / math.tan(math.radians(fov_y) / 2)
+    dist = focal * m
+    bu, bv = layout.base
+    cx = (width / 2 - bu) * m
+    cy = (bv - height / 2) * m
+    cam = Camera(width, height, fov_y, (cx, cy, dist), (cx, cy, 0.0), (0.0, 1.0, 0.0),
+                 near=max(dist - 4 * tree_height, dist * 0.05), far=dist + 4 * tree_height)
+    return cam, m
+
+
+def load_photo(photo, mask=None, *, max_size: int) -> tuple[Photo, np.ndarray | None]:
+    """The photo reduced to ``max_size`` on its long side, and the user's tree mask at its size (or None)."""
+    from treeform.io.images import read_mask
+
+    ph = fit_photo(as_photo(photo, max(max_size, 64)), max_size)
+    user_mask = None
+    if mask is not None:
+        user_mask = read_mask(mask, ph.shape) if not isinstance(mask, np.ndarray) else np.asarray(mask)
+    return ph, user_mask
+
+
+def segment_or_mask(image: np.ndarray, user_mask, *, segmenter: str, seed: int):
+    """The user's mask labelled foliage / wood, or the automatic segmentation (``segmenter``)."""
+    from treeform.segment import mask_to_segmentation, segment
+
+    if user_mask is not None:
+        return mask_to_segmentation(user_mask, image)
+    return segment(image, method=segmenter, seed=seed)
+
+
+def side_top_cameras(cam: Camera, tree_height: float, size: int) -> dict:
+    """Side and top cameras at the front camera's distance, centred on the tree axis."""
+    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
+    mid = (0.0, tree_height / 2, 0.0)
+    side = Camera(cam.width, cam.height, cam.fov_y, (dist, mid[1], 0.0), mid, (0, 1, 0), cam.near, cam.far)
+    top = Camera(cam.width, cam.height, cam.fov_y, (0.0, mid[1] + dist, 0.0), mid, (0, 0, -1), cam.near, cam.far)
+    return {"side": side, "top": top}

@@ -1,0 +1,161 @@
+"""Single photo -> 3D tree by learned perception and bi-modal growth (seed 003 §5, Fig. 2).
+
+segmentation M (network) -> species U (species CNN on M) -> RBV R (cascaded CNN on M) ->
+bi-modal growth of U's parameters inside R, its scaffold on M's wood -> leaves -> mesh ->
+front / side / top renders and the reprojection error against M -> the usual tree outputs.
+
+Each arrow is one call into a domain folder; the networks run on onnxruntime
+(:mod:`treeform.learn.infer`), nothing here imports torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from treeform import __version__
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.io.outputs import check_out_dir, write_json
+from treeform.methods.learned.config import LearnedConfig
+
+__all__ = ["STAGES", "LearnedReconstruction", "reconstruct"]
+
+STAGES = ("load", "segment", "species", "rbv", "grow", "render", "export")
+"""Stage names reported through ``progress(stage, event, seconds)``, in order (``metrics["timings"]``
+also holds the leaves and mesh times, spent inside grow)."""
+
+
+@dataclass
+class LearnedReconstruction:
+    """Everything :func:`reconstruct` made; ``files`` maps output names to paths (if written)."""
+
+    photo: object
+    segmentation: object
+    species: str
+    species_probabilities: dict
+    rbv: object
+    camera: object
+    skeleton: object
+    foliage: object
+    mesh: object
+    metrics: dict
+    config: LearnedConfig
+    renders: dict = field(default_factory=dict)
+    preview: np.ndarray | None = None
+    files: dict = field(default_factory=dict)
+
+
+def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = None,
+                progress: ProgressCallback | None = None, **options) -> LearnedReconstruction:
+    """Reconstruct a 3D tree from one photo with the learned networks (seed 003 §5).
+
+    Parameters
+    ----------
+    photo : path, ndarray (H, W, 3) uint8, or Photo
+    mask : path or ndarray (H, W), optional
+        User tree mask (white = tree) replacing the segmentation network.
+    out : path, optional
+        Directory for tree.glb, tree.obj (+ .mtl, textures), skeleton.json, skeleton.ply,
+        preview.png, metrics.json and config.json (all or nothing).
+    config : LearnedConfig, optional
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` over :data:`STAGES`.
+    **options
+        Overrides of config fields, e.g. ``species="pine", seed=3, lod="low"``.
+
+    Returns
+    -------
+    LearnedReconstruction
+
+    Raises
+    ------
+    InputError, NoTreeFoundError, ModelError, OutputError
+    """
+    from treeform.methods._single_photo import load_photo, photo_camera, segment_or_mask, side_top_cameras
+
+    cfg = LearnedConfig.from_dict({**(config.to_dict() if config else {}), **options})
+    out_dir = check_out_dir(out) if out is not None else None
+    timer = StageTimer(progress)
+
+    with timer.stage("load"):
+        ph, user_mask = load_photo(photo, mask, max_size=cfg.max_size)
+        image = ph.image
+        height_px, width_px = ph.shape
+    with timer.stage("segment"):
+        from treeform.crown.layout import tree_layout
+
+        seg = segment_or_mask(image, user_mask, segmenter=cfg.segmenter, seed=cfg.seed)
+        layout = tree_layout(seg)
+    with timer.stage("species"):
+        from treeform.learn.infer import predict_species
+
+        probs = predict_species(seg.labels)
+        species = cfg.species or next(iter(probs))
+    with timer.stage("rbv"):
+        from treeform.growth.species import load_reference_height
+        from treeform.learn.infer import predict_rbv
+        from treeform.structures import RadialBoundingVolume
+
+        levels = predict_rbv(seg.labels)
+        tree_h = float(cfg.tree_height or load_reference_height(species))
+        norm = np.maximum(levels[cfg.rbv_level - 1], 1e-3)
+        rbv = RadialBoundingVolume(norm * tree_h, tree_h)
+        cam, mpp = photo_camera(width_px, height_px, layout, tree_h, cfg.fov_y)
+    with timer.stage("grow"):
+        from treeform.methods.learned.grow import grow_tree
+
+        wood = seg.wood_mask
+        branch_mask = wood if wood.sum() >= 2 else None
+        grown = grow_tree(species, seed=cfg.seed, rbv_volume=rbv, branch_mask=branch_mask, mask_scale=mpp,
+                          mask_base=layout.base if branch_mask is not None else None, previews=False,
+                          leaves=cfg.leaves, lod=cfg.lod)
+        skeleton, foliage, mesh = grown.skeleton, grown.foliage, grown.mesh
+        skeleton.meta.update({"method": "learned", "source": Path(ph.source).name if ph.source else None})
+    for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage
+        timer.timings[k] = grown.metrics["timings"].get(k, 0.0)
+    with timer.stage("render"):
+        from treeform.metrics import extent_ratio, iou, reprojection_error
+        from treeform.methods.learned.grow import preview_lighting
+        from treeform.render import Renderer, to_uint8_rgb
+        from treeform.report import compose_strip, segmentation_overlay
+
+        light = preview_lighting()
+        renders = {"front": Renderer(cam, lighting=light).render(mesh)}
+        for name, vc in side_top_cameras(cam, tree_h, cfg.render_size).items():
+            renders[name] = Renderer(vc, lighting=light).render(mesh)
+        front = renders["front"].mask
+        metrics = {
+            "reprojection_error": reprojection_error(front, seg.tree_mask),
+            "iou": iou(front, seg.tree_mask),
+            "depth_width_ratio": extent_ratio(renders["side"].mask, front),
+            "species": species,
+            "species_predicted": next(iter(probs)),
+            "species_probabilities": {k: round(v, 4) for k, v in probs.items()},
+            "tree_height": round(tree_h, 4),
+            "rbv_level": cfg.rbv_level,
+            "nodes": skeleton.n_nodes,
+            "tips": int(len(skeleton.tips())),
+            "leaves": len(foliage),
+            "vertices": mesh.n_vertices,
+            "triangles": mesh.n_triangles,
+            "photo_size": [width_px, height_px],
+            "metres_per_pixel": mpp,
+        }
+        preview = compose_strip([image, segmentation_overlay(image, seg)]
+                                + [to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+    result = LearnedReconstruction(ph, seg, species, probs, rbv, cam, skeleton, foliage, mesh, metrics, cfg, renders,
+                                   preview)
+    if out_dir is not None:
+        with timer.stage("export"):
+            from treeform.io import write_tree_outputs
+
+            config_out = {"treeform": __version__, "method": "learned", "photo": ph.source, "config": cfg.to_dict()}
+            result.files = write_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton, preview=preview,
+                                              config=config_out, metrics=metrics)
+    metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
+    metrics["total_seconds"] = round(sum(v for k, v in timer.timings.items() if k not in ("leaves", "mesh")), 4)
+    if out_dir is not None:
+        write_json(out_dir / "metrics.json", metrics)
+    return result

@@ -1,0 +1,90 @@
+"""Tests of treeform.dataset.scenes: randomised training scenes, cut-outs and real-texture composites."""
+
+import numpy as np
+import pytest
+
+from treeform.dataset.scenes import (SEASONS, TREE_ANY, Sprite, compose_scene, cutout_split, load_cutouts,
+                                     paste_on_photo, recolor_season, sprite_from_render)
+
+
+def _sprite(rng_seed=0, known=True):
+    rng = np.random.default_rng(rng_seed)
+    rgba = np.zeros((80, 50, 4), np.uint8)
+    rgba[5:50, 5:45, :3] = (50, 120, 40)
+    rgba[5:50, 5:45, 3] = 255
+    rgba[50:80, 22:28, :3] = (100, 70, 40)
+    rgba[50:80, 22:28, 3] = 255
+    rgba[..., :3] = np.clip(rgba[..., :3] + rng.integers(-10, 10, rgba[..., :3].shape), 0, 255)
+    labels = np.zeros((80, 50), np.uint8)
+    labels[5:50, 5:45] = 1 if known else TREE_ANY
+    labels[50:80, 22:28] = 2 if known else TREE_ANY
+    return sprite_from_render(rgba, labels) if known else Sprite(rgba, labels)
+
+
+def test_compose_scene_is_deterministic_and_labels_the_tree():
+    tree, others = _sprite(), [_sprite(1), _sprite(2, known=False)]
+    a = compose_scene(tree, others, np.random.default_rng([3, 4]), size=96)
+    b = compose_scene(tree, others, np.random.default_rng([3, 4]), size=96)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    img, lab = a
+    assert img.shape == (96, 96, 3) and img.dtype == np.uint8 and lab.shape == (96, 96)
+    assert set(np.unique(lab)) <= {0, 1, 2}
+    # the tree (45-98 % of the frame high) is labelled; background trees never are
+    assert (lab > 0).mean() > 0.02
+
+
+def test_scenes_without_a_main_tree_are_all_background():
+    for k in range(5):
+        img, lab = compose_scene(None, [_sprite(1)], np.random.default_rng(k), size=64)
+        assert not lab.any()
+        assert img.std() > 1.0  # a scene, not a blank
+
+
+def test_cutout_labels_stay_tree_of_unknown_part():
+    img, lab = compose_scene(_sprite(0, known=False), [], np.random.default_rng(1), size=96)
+    assert set(np.unique(lab)) <= {0, TREE_ANY} and (lab == TREE_ANY).any()
+
+
+@pytest.mark.parametrize("season", SEASONS)
+def test_recolor_season_changes_only_foliage(season):
+    sp = _sprite()
+    rgb = np.ascontiguousarray(sp.rgba[..., :3])
+    fol = sp.labels == 1
+    out = recolor_season(rgb, fol, season, np.random.default_rng(0))
+    assert np.array_equal(out[~fol], rgb[~fol])
+    if season in ("red", "orange", "yellow", "purple"):
+        r, g = out[fol][:, 0].astype(int), out[fol][:, 1].astype(int)
+        assert np.median(r - g) > -5  # no longer green-dominant
+
+
+def test_cutout_split_keeps_an_identity_together():
+    names = [f"deciduous_row{r}_col{c}.png" for r in range(4) for c in range(8)]
+    by_id = {}
+    for n in names:
+        by_id.setdefault(n.split("_col")[1], set()).add(cutout_split(n))
+    assert all(len(v) == 1 for v in by_id.values())
+    assert {cutout_split(n) for n in names} <= {"train", "test"}
+
+
+def test_load_cutouts_of_the_shared_billboards():
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "billboards"
+    if not folder.is_dir():
+        pytest.skip("../shared/data/billboards is not available")
+    train, test = load_cutouts(folder, split="train"), load_cutouts(folder, split="test")
+    assert len(train) > len(test) > 20
+    assert not {s.name for s in train} & {s.name for s in test}
+    for s in test[:5]:
+        assert s.rgba.shape[:2] == s.labels.shape and set(np.unique(s.labels)) <= {0, TREE_ANY}
+
+
+def test_paste_on_photo_mask_matches_the_pasted_alpha():
+    rng = np.random.default_rng(0)
+    photo = rng.integers(0, 255, (300, 400, 3)).astype(np.uint8)
+    img, mask = paste_on_photo(_sprite(0, known=False), photo, np.random.default_rng(5), size=128)
+    assert img.shape == (128, 128, 3) and mask.dtype == bool
+    frac = mask.mean()
+    assert 0.02 < frac < 0.9
+    # the tree pixels carry the sprite's green, the rest the blurred photo
+    assert img[mask][:, 1].mean() > img[mask][:, 0].mean()

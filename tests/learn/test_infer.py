@@ -1,0 +1,118 @@
+"""Tests of treeform.learn.infer and treeform.segment.learned: the shipped networks on onnxruntime."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from treeform._shared.errors import ModelError, NoTreeFoundError
+from treeform.learn.infer import Segmenter, main_tree, predict_rbv, predict_species, weights_path
+from treeform.segment import segment, segment_tree_learned
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+
+
+@pytest.fixture(scope="module")
+def celtis():
+    return np.asarray(Image.open(SAMPLE).convert("RGB"))
+
+
+def test_shipped_weights_exist_and_are_small():
+    total = 0
+    for kind in ("seg", "species", "rbv"):
+        p = weights_path(kind)
+        assert p.is_file(), f"{p} missing: run make weights"
+        total += p.stat().st_size
+    assert total <= 25 * 2**20
+
+
+def test_segmenter_probabilities_cover_the_photo(celtis):
+    p = Segmenter().probabilities(celtis)
+    assert p.shape == celtis.shape[:2] + (3,) and p.dtype == np.float32
+    assert np.allclose(p.sum(-1), 1.0, atol=1e-4)
+
+
+def test_learned_segmentation_finds_the_sample_tree(celtis):
+    seg = segment_tree_learned(celtis)
+    assert seg.shape == celtis.shape[:2]
+    frac = seg.tree_mask.mean()
+    assert 0.15 < frac < 0.8  # a tree filling much of the frame, not the whole photo
+    assert seg.foliage_mask.sum() > seg.wood_mask.sum() > 0
+    # the crown sits above the trunk
+    ys_f = np.nonzero(seg.foliage_mask)[0].mean()
+    ys_w = np.nonzero(seg.wood_mask)[0].mean()
+    assert ys_f < ys_w
+    # deterministic
+    assert np.array_equal(seg.labels, segment(celtis, method="learned").labels)
+
+
+@pytest.mark.parametrize("kind", ["noise", "wall", "sky"])
+def test_photos_without_a_tree_say_so(kind):
+    rng = np.random.default_rng(0)
+    if kind == "noise":
+        img = rng.integers(0, 256, (300, 400, 3)).astype(np.uint8)
+    elif kind == "wall":
+        img = np.zeros((300, 400, 3), np.uint8) + np.array([180, 160, 140], np.uint8)
+        img[::20] = 120  # mortar lines
+        img = np.clip(img + rng.normal(0, 6, img.shape), 0, 255).astype(np.uint8)
+    else:
+        t = np.linspace(0, 1, 300)[:, None, None]
+        img = np.broadcast_to((1 - t) * np.array([90, 140, 220]) + t * np.array([200, 220, 240]), (300, 400, 3))
+        img = img.astype(np.uint8)
+    with pytest.raises(NoTreeFoundError, match="no tree found"):
+        segment_tree_learned(img)
+
+
+def test_main_tree_drops_a_separate_neighbour():
+    m = np.zeros((100, 100), bool)
+    m[20:90, 40:60] = True        # the tree
+    m[30:50, 0:8] = True          # a neighbour at the left edge
+    m[15:19, 45:55] = True        # a piece of crown just above the tree (kept)
+    keep = main_tree(m)
+    assert keep[50, 50] and keep[16, 50] and not keep[40, 3]
+
+
+def test_missing_and_corrupt_weights_name_the_file_and_make_weights(tmp_path, celtis):
+    with pytest.raises(ModelError, match=r"missing.*make weights"):
+        Segmenter(tmp_path / "nope.onnx")
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(b"this is not an onnx graph")
+    with pytest.raises(ModelError) as exc:
+        segment_tree_learned(celtis, weights=bad)
+    msg = str(exc.value)
+    assert "bad.onnx" in msg and "make weights" in msg and "\n" not in msg
+
+
+def test_species_and_rbv_networks_on_a_mask(celtis):
+    seg = segment_tree_learned(celtis)
+    probs = predict_species(seg.labels)
+    assert len(probs) == 7 and abs(sum(probs.values()) - 1) < 1e-5
+    assert list(probs.values()) == sorted(probs.values(), reverse=True)
+    levels = predict_rbv(seg.labels)
+    assert [lv.shape for lv in levels] == [(1, 1), (2, 2), (4, 4), (8, 8), (16, 16)]
+    assert all((lv >= 0).all() and (lv < 2).all() for lv in levels)
+    # a mirrored tree gets (about) the mirrored RBV: the network is not blind to left and right
+    from treeform.dataset.augment import mirror_rbv
+
+    flipped = predict_rbv(seg.labels[:, ::-1].copy())
+    d_same = np.abs(flipped[3] - mirror_rbv(levels[3])).mean()
+    assert d_same < 0.08
+
+
+def test_inference_path_imports_neither_torch_nor_training_code():
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "from PIL import Image\n"
+            "import treeform.cli.app\n"
+            "from treeform.methods.learned import pipeline\n"
+            "from treeform.segment import segment_tree_learned\n"
+            f"segment_tree_learned(np.asarray(Image.open({str(SAMPLE)!r}).convert('RGB')))\n"
+            "bad = [m for m in sys.modules if m == 'torch' or m.startswith('torch.') or m.startswith('treeform.learn.train')"
+            " or m.startswith('treeform.learn.nets')]\n"
+            "assert not bad, bad\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr

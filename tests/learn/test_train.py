@@ -1,0 +1,59 @@
+"""Tests of the training code (needs the optional torch extra; skipped without it)."""
+
+import json
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("onnx")
+
+
+@pytest.fixture(scope="module")
+def tiny_data(tmp_path_factory, gl):
+    from treeform.dataset import generate_dataset
+
+    d = tmp_path_factory.mktemp("data") / "train"
+    generate_dataset(d, n=6, size=64, workers=1, seed=3, shard_size=3)
+    return d
+
+
+def _fail_at(step):
+    def cb(done, total, info):
+        if done == step:
+            raise KeyboardInterrupt
+    return cb
+
+
+def test_seg_training_resumes_to_the_same_weights(tmp_path, tiny_data):
+    from treeform.learn.train import train_seg
+
+    opts = dict(steps=4, batch=2, size=64, chunk=4, repeats=1, checkpoint_every=2, threads=1, width=8)
+    a = train_seg(tiny_data, tmp_path / "a", test_data=tiny_data, **opts)
+    with pytest.raises(KeyboardInterrupt):
+        train_seg(tiny_data, tmp_path / "b", progress=_fail_at(3), **opts)  # killed after the step-2 checkpoint
+    b = train_seg(tiny_data, tmp_path / "b", test_data=tiny_data, **opts)
+    wa = torch.load(tmp_path / "a" / "checkpoint.pt", weights_only=False)["model"]
+    wb = torch.load(tmp_path / "b" / "checkpoint.pt", weights_only=False)["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert (tmp_path / "a" / "model.onnx").stat().st_size > 10_000
+    m = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert 0.0 <= m["renders"]["mean_iou"] <= 1.0 and a["renders"]["n"] > 0
+
+
+def test_rbv_training_writes_an_onnx_that_matches_torch(tmp_path, tiny_data):
+    import onnxruntime as ort
+
+    from treeform.learn.nets.masknets import RBVNet
+    from treeform.learn.train_masks import train_masknet
+
+    m = train_masknet("rbv", tiny_data, tmp_path / "rbv", test_data=tiny_data, epochs=2, batch=2, threads=1)
+    assert len(m["test"]["gt"]["mae_percent"]) == 5
+    net = RBVNet()
+    net.load_state_dict(torch.load(tmp_path / "rbv" / "checkpoint.pt", weights_only=False)["model"])
+    net.eval()
+    x = np.random.default_rng(0).random((2, 3, 96, 96)).astype(np.float32)
+    sess = ort.InferenceSession(str(tmp_path / "rbv" / "model.onnx"), providers=["CPUExecutionProvider"])
+    y = sess.run(None, {"mask": x})[0]
+    with torch.no_grad():
+        assert np.allclose(y, net(torch.from_numpy(x)).numpy(), atol=1e-4)

@@ -1,0 +1,69 @@
+"""End-to-end tests of the learned single-photo method (seed 003 §5) on the bundled sample."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform.io import read_glb_counts
+from treeform.methods import METHODS
+from treeform.methods.learned.pipeline import STAGES, reconstruct
+from treeform.structures import TreeSkeleton
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+FAST = dict(max_size=400, lod="low", render_size=128)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, gl):
+    out = tmp_path_factory.mktemp("learned") / "tree"
+    return reconstruct(SAMPLE, out=out, seed=0, **FAST), out
+
+
+def test_registry_points_at_the_pipeline():
+    assert METHODS["learned"][2] == "treeform.methods.learned.pipeline:reconstruct"
+
+
+def test_outputs_exist_and_agree(run):
+    res, out = run
+    names = {p.name for p in out.iterdir()}
+    assert {"tree.glb", "tree.obj", "skeleton.json", "skeleton.ply", "preview.png", "metrics.json",
+            "config.json"} <= names
+    assert read_glb_counts(out / "tree.glb") == (res.mesh.n_vertices, res.mesh.n_triangles)
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["species"] in m["species_probabilities"] and set(STAGES) <= set(m["timings"])
+    assert abs(sum(m["species_probabilities"].values()) - 1) < 1e-3
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["method"] == "learned"
+
+
+def test_tree_matches_the_photo_and_the_predicted_volume(run):
+    res, _ = run
+    m = res.metrics
+    assert m["reprojection_error"] < 0.6 and m["iou"] > 0.35
+    # the tree stands in its RBV: almost every node inside the (slightly grown) volume
+    sk = res.skeleton
+    h = res.rbv.physical_height
+    assert 0.6 * h < sk.positions[:, 1].max() < 1.4 * h
+    assert abs(sk.positions[0, 1]) < 0.05 * h
+
+
+def test_species_override_and_determinism(tmp_path, run):
+    res, out = run
+    again = reconstruct(SAMPLE, seed=0, **FAST)
+    np.testing.assert_array_equal(again.skeleton.positions, res.skeleton.positions)
+    other = "pine" if res.species != "pine" else "oak"
+    forced = reconstruct(SAMPLE, seed=0, species=other, **FAST)
+    assert forced.species == other and forced.metrics["species_predicted"] == res.metrics["species_predicted"]
+
+
+def test_bad_species_and_treeless_photo(tmp_path):
+    with pytest.raises(InputError, match="species"):
+        reconstruct(SAMPLE, species="palm", **FAST)
+    noise = np.random.default_rng(0).integers(0, 256, (240, 320, 3)).astype(np.uint8)
+    with pytest.raises(NoTreeFoundError):
+        reconstruct(noise, out=tmp_path / "x", **FAST)
+    assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())
