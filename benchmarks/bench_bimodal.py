@@ -22,13 +22,28 @@ import time
 import numpy as np
 
 
+def front_branch_mask(gt, h: float, size: int = 512):
+    """Orthographic-like front camera of a tree of height ``h``, its branch mask (>= 1 px) and base pixel."""
+    from treeform.geometry.tubes import branch_mesh
+    from treeform.render import Renderer
+    from treeform.structures import Camera, Mesh
+
+    dist = 1000 * h
+    cam = Camera(size, size, 2 * np.degrees(np.arctan(0.6 * h / dist)), (0, h / 2, dist), (0, h / 2, 0),
+                 near=dist - 3 * h, far=dist + 3 * h)
+    px = 1.2 * h / size
+    mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
+    base = cam.project(np.zeros((1, 3)))[0]
+    return cam, mask, (base[0], base[1]), dist / cam.focal
+
+
 def main():
     from treeform.geometry.tubes import branch_mesh
     from treeform.growth.bimodal import bimodal_grow
     from treeform.growth.phenomenological import grow
     from treeform.growth.species import SPECIES, load_species
     from treeform.render import Renderer
-    from treeform.structures import Camera, Mesh, RadialBoundingVolume
+    from treeform.structures import Mesh, RadialBoundingVolume
 
     size = 512
     print("| species | fill of target RBV (level 4) | inside target | own RBV L3-5 | tracing IoU | grow from mask (s) |")
@@ -44,16 +59,10 @@ def main():
         ok = target.physical_radii > 0
         fill = float(np.minimum(got.physical_radii[ok] / target.physical_radii[ok], 1.0).mean())
         own = all(RadialBoundingVolume.from_skeleton(rec, level=k).contains(rec.positions).all() for k in (3, 4, 5))
-        h = rbv5.physical_height
-        dist = 1000 * h
-        cam = Camera(size, size, 2 * np.degrees(np.arctan(0.6 * h / dist)), (0, h / 2, dist), (0, h / 2, 0),
-                     near=dist - 3 * h, far=dist + 3 * h)
-        px = 1.2 * h / size
-        mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
-        base = cam.project(np.zeros((1, 3)))[0]
+        cam, mask, base, mpp = front_branch_mask(gt, rbv5.physical_height, size)
         t0 = time.perf_counter()
-        tree = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=dist / cam.focal, mask_base=(base[0], base[1]),
-                            orient=False, clamp=False, crown_years=1, spacing=dist / cam.focal)
+        tree = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=mpp, mask_base=base,
+                            orient=False, clamp=False, crown_years=1, spacing=mpp)
         dt = time.perf_counter() - t0
         wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(tree, radial_segments=6)])).mask
         iou = float((mask & wood).sum() / (mask | wood).sum())
@@ -72,13 +81,11 @@ def own_volume(seeds=(1, 2, 3), size: int = 512):
     :func:`bimodal_grow`. Reports the mean sector radius of the regrown tree's level-4 RBV
     over the truth's, and the regrown / true average branching angle and biomass.
     """
-    from treeform.geometry.tubes import branch_mesh
     from treeform.growth.bimodal import bimodal_grow
     from treeform.growth.phenomenological import grow
     from treeform.growth.species import SPECIES, load_species
     from treeform.metrics import average_branching_angle, biomass
-    from treeform.render import Renderer
-    from treeform.structures import Camera, Mesh, RadialBoundingVolume
+    from treeform.structures import RadialBoundingVolume
 
     rows = []
     print("\n| species | seed | mean sector radius ratio | branching angle ratio | biomass ratio | nodes (true / regrown) | s |")
@@ -88,16 +95,9 @@ def own_volume(seeds=(1, 2, 3), size: int = 512):
         for seed in seeds:
             gt = grow(p, seed=seed)
             target = RadialBoundingVolume.from_skeleton(gt, level=4)
-            h = target.physical_height
-            dist = 1000 * h
-            cam = Camera(size, size, 2 * np.degrees(np.arctan(0.6 * h / dist)), (0, h / 2, dist), (0, h / 2, 0),
-                         near=dist - 3 * h, far=dist + 3 * h)
-            px = 1.2 * h / size
-            mask = Renderer(cam, samples=1).render(Mesh([branch_mesh(gt, radial_segments=6, min_radius=px)])).mask
-            base = cam.project(np.zeros((1, 3)))[0]
+            _, mask, base, mpp = front_branch_mask(gt, target.physical_height, size)
             t0 = time.perf_counter()
-            rec = bimodal_grow(p, target, mask=mask, seed=seed + 100, mask_scale=dist / cam.focal,
-                               mask_base=(base[0], base[1]))
+            rec = bimodal_grow(p, target, mask=mask, seed=seed + 100, mask_scale=mpp, mask_base=base)
             dt = time.perf_counter() - t0
             got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0.0, -np.inf]), level=4)
             ratio = got.physical_radii.mean() / target.physical_radii.mean()

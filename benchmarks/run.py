@@ -23,28 +23,15 @@ SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
 
 
 
-def bench_reconstruct(repeat):
-    from treeform.methods.envelope.pipeline import reconstruct
+def bench_reconstruct(repeat, method: str = "envelope"):
+    """Median seconds of one method's reconstruct of the sample (warm), per-stage medians and the last metrics."""
+    import importlib
 
+    reconstruct = importlib.import_module(f"treeform.methods.{method}.pipeline").reconstruct
     stages = {}
-    out = Path(tempfile.mkdtemp(prefix="treeform-bench-"))
-    reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, GL context, numba-free caches
+    out = Path(tempfile.mkdtemp(prefix=f"treeform-bench-{method}-"))
+    reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, GL context, onnxruntime sessions
     totals = []
-    for i in range(repeat):
-        t0 = time.perf_counter()
-        res = reconstruct(SAMPLE, out=out / f"r{i}")
-        totals.append(time.perf_counter() - t0)
-        for k, v in res.metrics["timings"].items():
-            stages.setdefault(k, []).append(v)
-    return statistics.median(totals), {k: statistics.median(v) for k, v in stages.items()}, res.metrics
-
-
-def bench_reconstruct_learned(repeat):
-    from treeform.methods.learned.pipeline import reconstruct
-
-    out = Path(tempfile.mkdtemp(prefix="treeform-bench-learned-"))
-    reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, onnxruntime sessions, GL context
-    totals, stages = [], {}
     for i in range(repeat):
         t0 = time.perf_counter()
         res = reconstruct(SAMPLE, out=out / f"r{i}")
@@ -87,7 +74,7 @@ def main():
     rows.append(("reconstruct, 450x600 photo, in-process (median)", total))
     for k, v in stages.items():
         rows.append((f"  stage {k}", v))
-    total_l, stages_l, metrics_l = bench_reconstruct_learned(args.repeat)
+    total_l, stages_l, metrics_l = bench_reconstruct(args.repeat, "learned")
     rows.append(("reconstruct --method learned, 450x600 photo, in-process (median)", total_l))
     for k, v in stages_l.items():
         rows.append((f"  stage {k}" + (" (inside grow)" if k in ("leaves", "mesh") else ""), v))
