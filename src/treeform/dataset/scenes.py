@@ -357,7 +357,6 @@ def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int =
             _paste(img, None, other(), None, S * rng.uniform(0.12, 0.55), rng.uniform(-0.1, 1.1) * S,
                    horizon + rng.uniform(-0.02, 0.08) * S, haze=rng.uniform(0.1, 0.6), haze_col=sky_col,
                    blur=rng.uniform(0.0, 2.0))
-    tree_box = None
     if tree is not None:
         rgba, labels = _tree_look(tree, rng)
         if rng.random() < 0.5:

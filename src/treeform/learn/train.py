@@ -22,7 +22,7 @@ import json
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -72,8 +72,7 @@ class SegTrainConfig:
     def from_dict(cls, d: dict) -> "SegTrainConfig":
         from treeform._shared.checks import check_known_options
 
-        check_known_options(cls, d)
-        return cls(**{f.name: d[f.name] for f in fields(cls) if f.name in d})
+        return cls(**check_known_options(cls, d))
 
 
 def _partial_ce(logits, labels, wood_weight: float):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -44,8 +44,7 @@ class MaskTrainConfig:
     def from_dict(cls, d: dict) -> "MaskTrainConfig":
         from treeform._shared.checks import check_known_options
 
-        check_known_options(cls, d)
-        return cls(**{f.name: d[f.name] for f in fields(cls) if f.name in d})
+        return cls(**check_known_options(cls, d))
 
 
 def mask_arrays(directory, *, seg_weights=None, progress=None) -> dict:
@@ -209,7 +208,7 @@ def train_masknet(kind: str, data, out, *, test_data=None, seg_weights=None, con
                       "config": asdict(cfg), "kind": kind, "seconds": prior_seconds + time.perf_counter() - t0,
                       "torch_rng": torch.get_rng_state()}, ckpt)
     model.eval()
-    onnx_path = export_onnx(model, out / "model.onnx", kind=kind, metadata={"epochs": cfg.epochs})
+    export_onnx(model, out / "model.onnx", kind=kind, metadata={"epochs": cfg.epochs})
     metrics = {"network": kind, "train_seconds": round(prior_seconds + time.perf_counter() - t0, 1),
                "train_samples": int(n)}
     if test_data is not None:

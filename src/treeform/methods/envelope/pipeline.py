@@ -14,12 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from treeform import __version__
-from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, write_json
-from treeform.methods._single_photo import (as_photo, fit_photo, load_photo, photo_camera,  # noqa: F401
-                                              segment_or_mask, side_top_cameras)
+from treeform.methods._single_photo import load_photo, photo_camera, segment_or_mask, side_top_cameras
 from treeform.methods.envelope.config import EnvelopeConfig
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
 

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from treeform._shared.timing import StageTimer
 
 __all__ = ["SEGMENT_STAGES", "SPECIES_STAGES", "SegmentResult", "classify_species", "segment_photo"]
@@ -61,19 +59,15 @@ def segment_photo(photo, *, out=None, overlay=None, segmenter: str = "classical"
     from treeform._shared.checks import check_choice
     from treeform.io.outputs import check_out_file
     from treeform.segment import SEGMENTERS, segment
-    from treeform.structures import Photo
 
     check_choice(segmenter, "segmenter", SEGMENTERS)
     out_p = check_out_file(out) if out is not None else None
     ov_p = check_out_file(overlay, "--overlay") if overlay is not None else None
     timer = StageTimer(progress)
     with timer.stage("load"):
-        if isinstance(photo, np.ndarray):
-            ph = Photo(np.ascontiguousarray(photo))
-        else:
-            from treeform.io import read_photo
+        from treeform.methods._single_photo import as_photo
 
-            ph = read_photo(photo, max_size=max_size)
+        ph = as_photo(photo, max_size)
     with timer.stage("segment"):
         seg = segment(ph.image, method=segmenter, seed=seed)
     files = {}
@@ -99,9 +93,13 @@ def classify_species(photo, *, segmenter: str = "learned", seed: int = 0, max_si
     The photo is segmented (``segmenter``) and the species CNN reads the semantic mask.
     """
     from treeform.learn.infer import predict_species
+    from treeform.methods._single_photo import load_photo
+    from treeform.segment import segment
 
     timer = StageTimer(progress)
-    res = segment_photo(photo, segmenter=segmenter, seed=seed, max_size=max_size,
-                        progress=lambda s, e, t: progress(s, e, t) if progress and s != "write" else None)
+    with timer.stage("load"):
+        ph, _ = load_photo(photo, max_size=max_size)
+    with timer.stage("segment"):
+        seg = segment(ph.image, method=segmenter, seed=seed)
     with timer.stage("species"):
-        return predict_species(res.segmentation.labels)
+        return predict_species(seg.labels)
