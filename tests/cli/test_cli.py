@@ -130,3 +130,125 @@ def test_reconstruct_cli_happy_path(tmp_path):
     for stage in ("segment", "envelope", "colonize", "export"):
         assert stage in proc.stderr  # per-stage timings on the progress display
     assert (out / "tree.glb").stat().st_size > 10_000
+
+
+def test_help_speaks_to_users():
+    """Usage lines show PHOTO (not {PHOTO}), flags carry no <bool>, and no paper sections leak into help."""
+    import re
+
+    from typer.testing import CliRunner
+
+    from treeform.cli.app import app
+    import typer.main
+
+    runner = CliRunner()
+    group = typer.main.get_command(app)
+    paths = [[]]
+    for name, cmd in group.commands.items():
+        subs = getattr(cmd, "commands", None)
+        paths += [[name, s] for s in subs] if subs else [[name]]
+    for path in paths:
+        res = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "200"})
+        assert res.exit_code == 0, (path, res.output)
+        text = res.output
+        assert not re.search(r"\{[A-Za-z_]+\}", text), (path, text)
+        assert "<bool>" not in text, (path, text)
+        assert not re.search(r"seed 00\d|§|paper 00\d", text), (path, text)
+
+
+def _sky(tmp_path) -> Path:
+    return _write(tmp_path, "sky.png", BAD["sky.png"])
+
+
+def test_error_is_the_last_line_after_the_progress(tmp_path):
+    """Piped stderr: the stages' plain lines, then the error alone on the last line."""
+    out = tmp_path / "out"
+    proc = cli("reconstruct", _sky(tmp_path), "--out", out)
+    assert_clean_failure(proc, out)
+    lines = [l for l in proc.stderr.splitlines() if l.strip()]
+    assert lines[-1].startswith("error: ") and "no tree" in lines[-1]
+    assert any(l.startswith("  segment ") for l in lines[:-1])  # progress came first, on lines of its own
+    assert "━" not in proc.stderr  # no bar drawn into a pipe
+
+
+def _screen(raw: str) -> list[str]:
+    """What a terminal shows after ``raw``: text, CR, LF, cursor up (ESC[nA), erase line (ESC[2K)."""
+    import re
+
+    rows, row, col = [[]], 0, 0
+    for tok in re.findall(r"\x1b\[[0-9;?]*[A-Za-z]|\r|\n|[^\x1b\r\n]", raw):
+        if tok == "\r":
+            col = 0
+        elif tok == "\n":
+            row, col = row + 1, 0
+            if row == len(rows):
+                rows.append([])
+        elif tok.startswith("\x1b["):
+            if tok.endswith("A"):
+                row = max(0, row - int(tok[2:-1] or 1))
+            elif tok == "\x1b[2K":
+                rows[row] = []
+        else:
+            line = rows[row]
+            line.extend(" " * (col - len(line)))
+            line[col:col + 1] = [tok]
+            col += 1
+    text = ["".join(r).rstrip() for r in rows]
+    while text and not text[-1]:
+        text.pop()
+    return text
+
+
+def test_error_in_a_terminal_comes_after_the_bar_is_gone(tmp_path):
+    """In a terminal the live bar is erased before the error line: no half-drawn bar beside it."""
+    import os
+    import pty
+    import subprocess
+
+    from cli_helpers import EXE
+
+    master, slave = pty.openpty()
+    env = {k: v for k, v in os.environ.items() if k not in ("NO_COLOR", "TERM")}
+    env.update(TERM="xterm", COLUMNS="100")
+    proc = subprocess.Popen([str(EXE), "reconstruct", str(_sky(tmp_path)), "--out", str(tmp_path / "out")],
+                            stdout=slave, stderr=slave, env=env)
+    os.close(slave)
+    raw = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # the child closed the terminal
+            break
+        if not chunk:
+            break
+        raw += chunk
+    os.close(master)
+    assert proc.wait(timeout=240) != 0
+    screen = _screen(raw.decode("utf-8", "replace"))
+    assert screen[-1].startswith("error: ") and "no tree" in screen[-1], screen
+    assert not any("━" in l for l in screen), screen  # the bar was drawn (live) but is gone now
+    assert "━".encode() in raw
+
+
+@pytest.mark.parametrize("args, named", [
+    (("morph", "a.png", "b.png", "--out", "{tmp}/strip.png"), "no such files: a.png, b.png"),
+    (("grow", "--rbv", "v.npz", "--mask", "m.png", "--out", "{tmp}/g"), "no such files: --rbv v.npz, --mask m.png"),
+    (("reconstruct", "p.jpg", "--mask", "m.png", "--out", "{tmp}/r"), "no such files: p.jpg, --mask m.png"),
+    (("vary", "lib", "--from", "t.png", "--season", "s.jpg", "--out", "{tmp}/v"),
+     "no such files: lib, --from t.png, --season s.jpg"),
+    (("train", "seg", "--data", "d1", "--test-data", "d2", "--out", "{tmp}/t"),
+     "no such files: --data d1, --test-data d2"),
+])
+def test_every_missing_input_is_named_at_once(tmp_path, monkeypatch, args, named):
+    monkeypatch.chdir(tmp_path)
+    proc = cli(*[a.format(tmp=tmp_path) for a in args])
+    assert_clean_failure(proc, only_error=True)  # checked before any progress is shown
+    assert proc.stderr.strip() == f"error: {named}"
+    assert proc.returncode == 2 and not any(tmp_path.iterdir())
+
+
+def test_one_missing_input_among_several(tmp_path):
+    out = tmp_path / "strip.png"
+    proc = cli("morph", SAMPLE, tmp_path / "b.png", "--out", out)
+    assert_clean_failure(proc, only_error=True)
+    assert proc.stderr.strip() == f"error: {tmp_path / 'b.png'}: no such file" and not out.exists()

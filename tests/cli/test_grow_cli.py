@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from cli_helpers import assert_clean_failure, cli
 
 
@@ -29,6 +31,33 @@ def test_grow_writes_its_files(tmp_path):
     assert "pine" in proc.stdout and "branches" in proc.stdout
 
 
+def test_printed_figures_are_those_of_treeform_metrics(tmp_path):
+    """Issue 18: `grow --species oak --seed 3` printed 18.7 m wide, `treeform metrics` 20.8 x 26.6 m."""
+    import re
+
+    out = tmp_path / "oak"
+    proc = cli("grow", "--species", "oak", "--seed", "3", "--out", out, "--lod", "low")
+    assert proc.returncode == 0, proc.stderr
+    found = re.search(r"(\d+) leaves, .* ([\d.]+) m tall, crown ([\d.]+) x ([\d.]+) m \(width ([\d.]+) m\)",
+                      proc.stdout)
+    assert found, proc.stdout
+    leaves = int(found.group(1))
+    height, ex, ez, width = (float(found.group(k)) for k in range(2, 6))
+    saved = json.loads((out / "metrics.json").read_text())
+    assert (f"{saved['height']:.1f}", f"{saved['crown_extent_x']:.1f}", f"{saved['crown_extent_z']:.1f}",
+            f"{saved['crown_width']:.1f}") == (found.group(2), found.group(3), found.group(4), found.group(5))
+    assert width == round(0.5 * (saved["crown_extent_x"] + saved["crown_extent_z"]), 1)
+    for tree in ("skeleton.json", "tree.glb"):
+        proc = cli("metrics", out / tree, "--json")
+        assert proc.returncode == 0, proc.stderr
+        m = json.loads(proc.stdout)["metrics"]
+        for printed, key in ((height, "tree_height_m"), (ex, "crown_extent_x_m"), (ez, "crown_extent_z_m"),
+                             (width, "crown_width_m")):
+            assert abs(m[key] - printed) <= 0.05 + 1e-3, (tree, key, m[key], printed)
+        assert m["crown_width_m"] == pytest.approx(saved["crown_width"], abs=1e-3)
+        assert m["n_leaves"] == leaves == saved["leaves"], tree
+
+
 def test_unknown_species_fails_cleanly(tmp_path):
     out = tmp_path / "x"
     proc = cli("grow", "--species", "baobab", "--out", out)
@@ -41,7 +70,8 @@ def test_bad_species_file_and_unwritable_out_fail_cleanly(tmp_path):
     bad.write_text('{"parameters": {"age": 3}, "colour": 1}')
     out = tmp_path / "y"
     assert_clean_failure(cli("grow", "--species", bad, "--out", out), out)
-    out = tmp_path / "no" / "such" / "dir"
+    (tmp_path / "file").write_text("x")
+    out = tmp_path / "file" / "such" / "dir"  # missing folders are made, but not below a file
     assert_clean_failure(cli("grow", "--species", "oak", "--out", out), out)
 
 

@@ -64,6 +64,33 @@ def test_metrics_json_for_a_skeleton_json(tree_dir):
     assert got["leaf_area_index"] is None and res["skeleton"].endswith("skeleton.json")
 
 
+def test_crown_width_and_recorded_leaf_count(tmp_path):
+    sk = skeleton()
+    sk.meta["n_leaves"] = 40  # what the pipelines record when they save a tree's skeleton
+    sk.save(tmp_path / "skeleton.json")
+    write_glb(tree_mesh(skeleton(), foliage()), tmp_path / "tree.glb")
+    for tree in ("skeleton.json", "tree.glb"):
+        proc = cli("metrics", tmp_path / tree, "--json")
+        assert proc.returncode == 0, proc.stderr
+        m = json.loads(proc.stdout)["metrics"]
+        # extents from the outermost node to the outermost node; the crown width is their mean
+        assert m["crown_extent_x_m"] == pytest.approx(1.7) and m["crown_extent_z_m"] == pytest.approx(0.3)
+        assert m["crown_width_m"] == pytest.approx(1.0)
+        assert m["n_leaves"] == 40, tree
+    table = cli("metrics", tmp_path / "skeleton.json")
+    assert table.returncode == 0 and "crown_width_m" in table.stdout
+    # a skeleton from elsewhere, with no count recorded: the count is unknown, not made up
+    proc = cli("metrics", tree_dir_skeleton(tmp_path), "--json")
+    assert json.loads(proc.stdout)["metrics"]["n_leaves"] is None
+
+
+def tree_dir_skeleton(tmp_path):
+    path = tmp_path / "bare" / "skeleton.json"
+    path.parent.mkdir()
+    skeleton().save(path)
+    return path
+
+
 def test_metrics_of_a_glb_uses_the_skeleton_beside_it(tree_dir):
     proc = cli("metrics", tree_dir / "tree.glb", "--json")
     assert proc.returncode == 0, proc.stderr

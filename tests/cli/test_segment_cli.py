@@ -55,3 +55,45 @@ def test_reconstruct_learned_with_species_override(tmp_path):
     assert m["species"] == "maple" and (out / "tree.glb").stat().st_size > 10_000
     bad = cli("reconstruct", SAMPLE, "--method", "learned", "--species", "palm", "-o", tmp_path / "u")
     assert_clean_failure(bad, tmp_path / "u")
+
+
+def test_segment_mask_and_wood_files_feed_reconstruct_and_grow(tmp_path):
+    """Every file `reconstruct --mask` and `grow --mask` read, `segment` writes."""
+    lab, mask, wood = tmp_path / "labels.png", tmp_path / "mask.png", tmp_path / "wood.png"
+    proc = cli("segment", SAMPLE, "-o", lab, "--mask", mask, "--wood", wood)
+    assert proc.returncode == 0, proc.stderr
+    labels = np.asarray(Image.open(lab))
+    m, w = np.asarray(Image.open(mask)), np.asarray(Image.open(wood))
+    assert set(np.unique(m)) <= {0, 255} and set(np.unique(w)) <= {0, 255}
+    assert np.array_equal(m == 255, labels > 0) and np.array_equal(w == 255, labels == 2)
+    assert cli("segment", SAMPLE).returncode == 2  # nothing to write: a usage error, not a silent run
+    rec = cli("reconstruct", SAMPLE, "--mask", mask, "--lod", "low", "--leaves", "500", "-o", tmp_path / "rec")
+    assert rec.returncode == 0, rec.stderr
+    # the reconstruction's own segmentation is the mask it was given
+    assert json.loads((tmp_path / "rec" / "metrics.json").read_text())["iou"] > 0.5
+
+
+def test_rbv_command_writes_what_grow_reads(tmp_path):
+    from treeform.structures import RadialBoundingVolume, TreeSkeleton
+
+    tree = tmp_path / "oak"
+    assert cli("grow", "--species", "oak", "--seed", "2", "--lod", "low", "-o", tree).returncode == 0
+    out, plot = tmp_path / "crown_rbv.npz", tmp_path / "rbv.png"
+    proc = cli("rbv", tree, "-o", out, "--level", "3", "--plot", plot)
+    assert proc.returncode == 0, proc.stderr
+    vol = RadialBoundingVolume.load(out)
+    sk = TreeSkeleton.load(tree / "skeleton.json")
+    assert vol.level == 3 and vol.contains(sk.positions).all()
+    assert abs(vol.physical_height - np.ptp(sk.positions[:, 1])) < 0.05 * vol.physical_height
+    assert Image.open(plot).size[0] > 100
+    # the same volume from the GLB path (skeleton.json beside it) and from the skeleton file
+    for src in (tree / "tree.glb", tree / "skeleton.json"):
+        assert cli("rbv", src, "-o", tmp_path / "b.npz", "--level", "3").returncode == 0
+        assert np.array_equal(RadialBoundingVolume.load(tmp_path / "b.npz").radii, vol.radii)
+    grown = cli("grow", "--species", "oak", "--rbv", out, "--seed", "1", "--lod", "low", "-o", tmp_path / "g")
+    assert grown.returncode == 0, grown.stderr
+    inside = vol.contains(TreeSkeleton.load(tmp_path / "g" / "skeleton.json").positions).mean()
+    assert inside > 0.95
+    bad = cli("rbv", tmp_path / "missing", "-o", tmp_path / "c.npz")
+    assert_clean_failure(bad, only_error=True)
+    assert "missing" in bad.stderr and not (tmp_path / "c.npz").exists()

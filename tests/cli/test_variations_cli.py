@@ -1,6 +1,7 @@
 """`treeform library process`, `vary`, `morph`, `billboard`: happy paths and bad inputs
 (one `error:` line, non-zero exit, no partial files)."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,9 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from treeform.cli.app import app
+from treeform.io import read_photo
+from treeform.methods.variations import season_reference
+from treeform.methods.variations.season import mean_hue
 
 ROOT = Path(__file__).resolve().parents[2]
 BILLBOARDS = ROOT.parent / "shared" / "data" / "billboards"
@@ -62,7 +66,7 @@ def test_library_process(lib, cache, tmp_path):
     assert "4 from the cache" in again.stdout
 
 
-def test_vary_happy_paths(lib, cache, tmp_path):
+def test_vary_happy_paths(lib, cache, tmp_path, photos_dir):
     out = tmp_path / "vars"
     res = run("vary", lib, "-n", 3, "--out", out, "--seed", 2, "--cache", cache)
     assert res.exit_code == 0, res.stderr
@@ -71,15 +75,26 @@ def test_vary_happy_paths(lib, cache, tmp_path):
                      "variation_002.png"]
     with Image.open(out / "variation_000.png") as im:
         assert im.mode == "RGBA" and im.size == (1024, 1024)
-    ref = tmp_path / "autumn.png"
-    Image.fromarray(np.tile(np.array([[[200, 120, 40]], [[150, 70, 20]]], np.uint8), (20, 40, 1))).save(ref)
-    out2 = tmp_path / "from"
-    res = run("vary", lib, "-n", 2, "--out", out2, "--from", lib / PICK[0], "--season", ref, "--cache", cache)
-    assert res.exit_code == 0, res.stderr
-    with Image.open(out2 / "variation_001.png") as im:
-        a = np.asarray(im)
-    opaque = a[..., 3] >= 128
-    assert a[opaque][:, 0].mean() > a[opaque][:, 2].mean() + 50  # autumn colours
+    # variations of the (green, broadleaf) cesium tree in the colours of a yellow autumn
+    # mulberry: only broadleaf partners without --any-form; yellow crowns, not cyan
+    ref = photos_dir / "Morus_rubra_1.jpg"
+    photo_hue = mean_hue(season_reference(read_photo(ref).image).crown)[0]
+    hues = {}
+    for name, extra in (("from", ()), ("any", ("--any-form",))):
+        res = run("vary", lib, "-n", 2, "--out", tmp_path / name, "--from", lib / PICK[0], "--season", ref,
+                  "--cache", cache, *extra)
+        assert res.exit_code == 0, res.stderr
+        meta = json.loads((tmp_path / name / "config.json").read_text())
+        assert meta["config"]["any_form"] == bool(extra) and meta["season_trunk"] is False
+        hues[name] = []
+        for rec in meta["variations"]:
+            with Image.open(tmp_path / name / rec["file"]) as im:
+                a = np.asarray(im)
+            hues[name].append(mean_hue(a[a[..., 3] >= 128][:, :3])[0])
+    assert all(r["forms"] == ["broadleaf", "broadleaf"] and r["exemplars"][1] == PICK[1]
+               for r in json.loads((tmp_path / "from" / "config.json").read_text())["variations"])
+    # (the cesium tree's own crown is at 127 deg, the mulberry's at 89)
+    assert all(abs(h - photo_hue) < 6 for h in hues["from"] + hues["any"]), (photo_hue, hues)
 
 
 def test_morph_and_billboard(lib, cache, tmp_path):
@@ -124,7 +139,7 @@ def test_bad_inputs(lib, cache, tmp_path):
         ("morph", lib / PICK[0], lib / PICK[1], "--steps", 1, "-o", tmp_path / "s.png", "--cache", cache),
         ("billboard", afile, "-o", tmp_path / "t.png"),
         ("billboard", SAMPLE, "-o", tmp_path / "t.jpg"),
-        ("billboard", SAMPLE, "-o", tmp_path / "no_dir" / "t.png"),
+        ("billboard", SAMPLE, "-o", afile / "t.png"),  # the parent is a file
     ]
     for args in cases:
         res = run(*args)

@@ -1,4 +1,5 @@
-"""Dataset generation on Dask: shards, manifest, reproducibility, resuming, failures, retries, remote scheduler."""
+"""Dataset generation on Dask: shards, manifest, reproducibility, resuming (per shard and per sample),
+failures, retries, remote scheduler."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from PIL import Image
 
 from treeform._shared.errors import InputError
 from treeform.dataset import SyntheticDataset, generate_dataset, sample_members
-from treeform.dataset.storage import read_shard
+from treeform.dataset.storage import partial_indices, partial_path, read_partial, read_shard, write_partial
 
 SMALL = dict(size=48, lod="low", supersample=1)
 OPTIONS = {"size": 48, "species": [], "supersample": 1, "lod": "low", "mesh": False}
@@ -91,6 +92,68 @@ def test_interrupted_run_resumes_without_redoing_shards(tmp_path, gl):
     assert len(SyntheticDataset(out)) == 10
 
 
+def test_partial_samples_survive_only_whole(tmp_path):
+    """Stored samples are whole tars; a killed write (``.tmp``) or a cut file is dropped, not used."""
+    members = {"00000007.json": b'{"index":7}', "00000007.image.png": bytes(range(256)) * 5}
+    write_partial(tmp_path, 7, members)
+    assert read_partial(tmp_path, 7) == members
+    (tmp_path / "partial" / "00000008.tar.tmp").write_bytes(b"x" * 700)  # killed mid-write
+    partial_path(tmp_path, 9).write_bytes(partial_path(tmp_path, 7).read_bytes()[:1000])  # cut short
+    assert partial_indices(tmp_path) == {7}
+    assert sorted(p.name for p in (tmp_path / "partial").iterdir()) == ["00000007.tar"]
+
+
+def _newest_sample_time(out: Path) -> float:
+    return max(p.stat().st_mtime for p in (out / "partial").glob("*.tar"))
+
+
+def test_a_killed_run_loses_only_the_samples_in_progress(tmp_path, gl):
+    """SIGKILL in the middle of a shard: every finished sample is kept, the rerun makes only the
+    rest, and the shard is byte-identical to an uninterrupted run's."""
+    n = 8
+    out, ref = tmp_path / "killed", tmp_path / "uninterrupted"
+    args = ["-n", str(n), "--size", "48", "--workers", "1", "--seed", "3"]  # one shard of 1000: all of it in flight
+    cmd = [sys.executable, "-m", "treeform", "dataset", "generate", *args, "-o"]
+    proc = subprocess.Popen(cmd + [str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    try:
+        deadline = time.time() + 180
+        while time.time() < deadline and len(partial_indices(out)) < 3:
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # a crash: no clean-up of any kind
+        killed_at = time.time()
+        proc.wait()
+    kept = partial_indices(out)
+    assert 3 <= len(kept) < n, "the run finished before the kill (or stored nothing in 180 s)"
+    assert not list(out.glob("shard-*.tar"))  # no shard yet: the old scheme would have lost all of it
+    lost = killed_at - _newest_sample_time(out)  # wall time of work since the last stored sample
+    assert lost < 10, lost
+    rerun = subprocess.run(cmd + [str(out)], capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{n - len(kept)} samples in 1 new shard(s)" in rerun.stdout
+    assert f"{len(kept)} sample(s) kept from an interrupted run" in rerun.stdout
+    assert f"samples {len(kept)}/{n}" in rerun.stderr  # the progress starts from the kept samples
+    assert not (out / "partial").exists() and not list(out.glob("*.tmp"))
+    whole = subprocess.run(cmd + [str(ref)], capture_output=True, text=True, timeout=300)
+    assert whole.returncode == 0, whole.stderr
+    assert (out / "shard-00000.tar").read_bytes() == (ref / "shard-00000.tar").read_bytes()
+    shards = lambda d: json.loads((d / "manifest.json").read_text())["shards"]  # noqa: E731
+    assert shards(out) == shards(ref)
+    assert [s["index"] for s in SyntheticDataset(out)] == list(range(n))
+
+
+def test_stale_partial_samples_without_a_manifest_are_not_used(tmp_path, gl):
+    """Stored samples count only under the manifest that records their settings."""
+    out = tmp_path / "ds"
+    out.mkdir()
+    write_partial(out, 0, {"00000000.json": b'{"index":0}'})  # left by a run whose manifest is gone
+    res = generate_dataset(out, n=1, workers=1, seed=11, **SMALL)
+    assert res.kept == 0 and res.generated == 1
+    stored = read_shard(out / "shard-00000.tar")[0]
+    assert stored == sample_members(11, 0, OPTIONS) and not (out / "partial").exists()
+
+
 def test_a_failing_sample_is_recorded_and_skipped(tmp_path, gl):
     photos = tmp_path / "photos"
     photos.mkdir()
@@ -125,7 +188,7 @@ def test_dask_retries_once_then_records(tmp_path):
     from treeform.dataset.generate import GenerateResult, _run
 
     _CALLS.clear()
-    pending = {"shard-00000.tar": {"first": 0, "count": 4, "results": {}, "failed": []}}
+    pending = {"shard-00000.tar": {"first": 0, "count": 4, "kept": set(), "failed": []}}
     manifest = {"shards": {}}
     failures: dict = {}
     res = GenerateResult(out=tmp_path, n=4, workers=1)
@@ -136,6 +199,8 @@ def test_dask_retries_once_then_records(tmp_path):
     assert res.failed == [2] and res.generated == 3
     assert manifest["shards"]["shard-00000.tar"]["failed"] == [2]
     assert [len(s) for s in read_shard(tmp_path / "shard-00000.tar")] == [1, 1, 1]
+    assert [f["index"] for f in json.loads((tmp_path / "failures.json").read_text())] == [2]
+    assert partial_indices(tmp_path) == set()  # the shard is written: its stored samples are gone
 
 
 def test_generation_on_a_separately_started_scheduler_and_workers(tmp_path, gl):

@@ -50,7 +50,7 @@ def test_cards_counts_and_material():
     assert p.name == "leaves"
     mat = p.material
     assert mat.name == "leaves" and mat.alpha_mode == "MASK" and mat.alpha_cutoff == 0.5 and mat.double_sided
-    assert mat.texture.shape == (128, 128, 4)
+    assert mat.texture.shape == (256, 256, 4)  # LEAF_TEXTURE_SIZE
     assert np.allclose(p.colors[:, :3], np.repeat(f.color, 4, axis=0))
     assert np.all(p.colors[:, 3] == 1)
     tex = leaf_texture(32, kind="leaf")
@@ -94,3 +94,74 @@ def test_cards_edge_cases():
         leaf_cards("leaves")
     with pytest.raises(InputError, match="size_scale"):
         leaf_cards(f, size_scale=[1.0])
+
+
+# --------------------------------------------------------------------------- conifer textures
+def _opaque_runs(alpha: np.ndarray) -> np.ndarray:
+    """Lengths (texels) of the runs of opaque texels along every row and every column."""
+    runs = []
+    for m in (alpha > 127, (alpha > 127).T):
+        d = np.diff(np.pad(m.astype(np.int8), ((0, 0), (1, 1))), axis=1)
+        runs.append(np.flatnonzero(d.ravel() == -1) - np.flatnonzero(d.ravel() == 1))
+    return np.concatenate(runs)
+
+
+def _mip_coverage(alpha: np.ndarray, k: int) -> float:
+    """Opaque fraction after a k x k box filter (a mip level), as an alpha test at 0.5 sees it."""
+    n = alpha.shape[0] // k
+    return float((alpha[: n * k, : n * k].reshape(n, k, n, k).mean(axis=(1, 3)) >= 127.5).mean())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_needle_texture_is_thin_needles(seed):
+    t = leaf_texture(256, seed=seed, kind="needles")
+    assert t.shape == (256, 256, 4) and t.dtype == np.uint8
+    a = t[..., 3]
+    cov = texture_coverage(t)
+    assert 0.2 <= cov <= 0.4, cov  # far sparser than a broadleaf cluster (0.65)
+    runs = _opaque_runs(a)
+    # across a needle an opaque run is a few texels; a broadleaf blade spans tens
+    assert np.median(runs) <= 4 and runs.mean() <= 7, (np.median(runs), runs.mean())
+    assert _opaque_runs(leaf_texture(256, seed=seed)[..., 3]).mean() > 5 * runs.mean()
+    # many separate strands: the alpha changes along a row far more often than a cluster's
+    assert len(runs) > 3000
+    # the bottle-brush shape survives the mip chain (an alpha test at a distance keeps it)
+    for k in (2, 4, 8):
+        assert _mip_coverage(a, k) >= 0.6 * cov, k
+    # light, green-leaning colours for the card tint, with needle-to-needle shading
+    opaque = t[a > 127, :3].astype(float)
+    assert opaque.mean() > 0.6 * 255 and opaque[:, 1].mean() >= opaque[:, 0].mean()
+    assert opaque.std(axis=0).max() > 10
+    # nothing is cut by the card's border: the outermost texels are transparent
+    assert a[0].max() < 128 and a[:, 0].max() < 128 and a[:, -1].max() < 128
+
+
+def test_scale_texture_is_a_spray_of_scales():
+    t = leaf_texture(256, seed=0, kind="scales")
+    a = t[..., 3]
+    cov = texture_coverage(t)
+    assert 0.2 <= cov <= 0.45, cov
+    runs = _opaque_runs(a)
+    assert np.median(runs) <= 12 and runs.mean() < 0.25 * _opaque_runs(leaf_texture(256)[..., 3]).mean()
+    # the branchlets are chains of scales: along the main axis (the middle column) the
+    # luminance rises and falls once per scale, several times over its length
+    col = t[:, 120:136]
+    opaque = col[..., 3] > 200
+    rows = opaque.any(axis=1)
+    lum = col[..., :3].astype(float).mean(-1)
+    prof = (lum * opaque).sum(axis=1)[rows] / opaque.sum(axis=1)[rows]
+    d = np.diff(prof)
+    assert np.count_nonzero((d[:-1] > 0) & (d[1:] <= 0)) >= 8  # local maxima: scale centres
+    for k in (2, 4, 8):
+        assert _mip_coverage(a, k) >= 0.8 * cov
+
+
+@pytest.mark.parametrize("kind", ["needles", "scales"])
+def test_conifer_textures_deterministic_and_sized(kind):
+    assert np.array_equal(leaf_texture(64, seed=5, kind=kind), leaf_texture(64, seed=5, kind=kind))
+    assert not np.array_equal(leaf_texture(64, seed=5, kind=kind), leaf_texture(64, seed=6, kind=kind))
+    assert leaf_texture(16, seed=1, kind=kind).shape == (16, 16, 4)
+    for size in (64, 128, 512):  # strands widen to about a texel on small textures, never vanish
+        t = leaf_texture(size, seed=1, kind=kind)
+        assert t.shape == (size, size, 4)
+        assert 0.2 < texture_coverage(t) < (0.6 if size < 128 else 0.5), (size, texture_coverage(t))

@@ -92,3 +92,9 @@ def skeleton() -> TreeSkeleton:
 def make_cylinder():
     """The :func:`cylinder_part` factory."""
     return cylinder_part
+
+
+@pytest.fixture
+def make_leaves():
+    """The :func:`leaf_part` factory."""
+    return leaf_part

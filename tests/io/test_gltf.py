@@ -105,6 +105,18 @@ def test_texture_pixels_round_trip(glb):
         np.testing.assert_array_equal(pixels, part.material.texture)
 
 
+def test_read_glb_textures(glb, tmp_path):
+    from treeform.io.gltf import read_glb_textures
+
+    path, mesh = glb
+    tex = read_glb_textures(path)
+    assert set(tex) == {"leaf", "veil"}  # the bark material has no texture
+    np.testing.assert_array_equal(tex["leaf"], mesh.parts[1].material.texture)
+    np.testing.assert_array_equal(tex["veil"], mesh.parts[3].material.texture)  # stored as RGB, read as RGBA
+    with pytest.raises(InputError, match="GLB"):
+        read_glb_textures(REPO / "pyproject.toml")
+
+
 def test_counts_round_trip(glb):
     path, mesh = glb
     assert read_glb_counts(path) == (mesh.n_vertices, mesh.n_triangles)

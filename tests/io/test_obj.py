@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from treeform._shared.errors import InputError, OutputError
 from treeform.io import obj as obj_mod
 from treeform.io import write_obj
+from treeform.io.gltf import read_glb_textures
 
 
 def _parse_obj(text: str):
@@ -116,3 +119,162 @@ def test_unsafe_material_names_are_sanitised(tmp_path, make_cylinder):
     mtl = _parse_mtl((tmp_path / "t.mtl").read_text())
     assert set(mtl) == {"my_bark_x", "my_bark_x_2"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.mtl", "t.obj", "t_my_bark_x.png"]
+
+
+# --------------------------------------------------------------------------- leaf colours
+def _srgb_to_linear(c):
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _obj_card_colours(obj_path, texture: np.ndarray) -> np.ndarray:
+    """(M, 3) linear colour each leaf card of an OBJ shows: its faces' UVs pick a rectangle
+    of the leaves material's PNG, whose opaque texels over ``texture``'s (both decoded from
+    sRGB, weighted by alpha) give the colour the card multiplies the leaf texture with."""
+    from PIL import Image
+
+    text = obj_path.read_text()
+    v, vt, _, faces, _, _ = _parse_obj(text)
+    group_of_face, cur = [], None
+    for line in text.splitlines():
+        if line.startswith("g "):
+            cur = line.split()[1]
+        elif line.startswith("f "):
+            group_of_face.append(cur)
+    leaf_faces = faces[np.array(group_of_face) == "leaves"]
+    assert all(len(x) == 3 for x in np.array(v, dtype=object)[leaf_faces[..., 0].ravel() - 1][:50])  # no v colours
+    mtl = _parse_mtl(obj_path.with_suffix(".mtl").read_text())
+    png = mtl["leaves"]["map_Kd"][0]
+    assert mtl["leaves"]["map_d"] == [png]
+    atlas = np.asarray(Image.open(obj_path.with_name(png)).convert("RGBA"))
+    ah, aw = atlas.shape[:2]
+    th, tw = texture.shape[:2]
+    vt = np.array(vt)
+    uv = vt[leaf_faces[..., 1] - 1].reshape(-1, 6, 2)  # two triangles per card
+    x0 = np.rint(uv[..., 0].min(1) * aw).astype(int)
+    y0 = np.rint((1 - uv[..., 1].max(1)) * ah).astype(int)  # OBJ's v grows upwards
+    x1 = np.rint(uv[..., 0].max(1) * aw).astype(int)
+    y1 = np.rint((1 - uv[..., 1].min(1)) * ah).astype(int)
+    assert np.all(x1 - x0 == tw) and np.all(y1 - y0 == th)  # each card shows one whole leaf tile
+    lut = _srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+    full = texture[..., 3] == 255  # fully opaque texels
+    base = lut[texture[full][:, :3]].sum(0)
+    out = np.empty((len(uv), 3))
+    for i, (xa, ya) in enumerate(zip(x0, y0)):
+        tile = atlas[ya:ya + th, xa:xa + tw]
+        assert np.array_equal(tile[..., 3], texture[..., 3])  # the leaf's alpha, unchanged
+        out[i] = lut[tile[full][:, :3]].sum(0) / base
+    return out
+
+
+def _assert_colours_match(shown: np.ndarray, colours: np.ndarray, *, mean_tol: float, p95_tol: float):
+    err = np.abs(shown - colours)
+    assert err.mean() < mean_tol, err.mean()
+    assert np.percentile(err.max(axis=1), 95) < p95_tol, np.percentile(err.max(axis=1), 95)
+    # the texture alone (what the OBJ showed before: every card the same light green) is far off
+    untinted = np.abs(1.0 - colours).mean()
+    assert err.mean() < 0.1 * untinted
+
+
+def test_reconstructed_tree_obj_shows_the_photo_leaf_colours(tmp_path):
+    """The envelope method colours each leaf from the photo (a wide spread of greens); the
+    OBJ's leaf atlas, sampled through each card's UVs, shows those colours."""
+    from treeform import reconstruct
+    from treeform.geometry.textures import BARK_TEXTURE_SIZE, LEAF_TEXTURE_SIZE
+
+    photo = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    res = reconstruct(photo, out=tmp_path / "t", seed=0, max_size=320, attractors=3000, leaves=1500,
+                      rdm_resolution=128, lod="low")  # low: thinner bark; every leaf still fits
+    out = tmp_path / "t"
+    leaf_tex = read_glb_textures(out / "tree.glb")["leaves"]
+    bark_tex = read_glb_textures(out / "tree.glb")["bark"]
+    assert leaf_tex.shape[0] >= LEAF_TEXTURE_SIZE and bark_tex.shape[0] >= BARK_TEXTURE_SIZE  # 256², 512²
+    from PIL import Image
+
+    assert Image.open(out / "tree_bark.png").size == bark_tex.shape[:2]
+    colours = res.foliage.color.astype(np.float64)
+    assert colours.std(axis=0).min() > 0.1  # a hard case: many distinct colours, not one green
+    shown = _obj_card_colours(out / "tree.obj", leaf_tex)
+    assert len(shown) == len(res.foliage)
+    _assert_colours_match(shown, colours, mean_tol=0.03, p95_tol=0.08)
+
+
+def test_grown_tree_obj_shows_the_leaf_colours(tmp_path):
+    from treeform.methods.learned.grow import grow_tree
+
+    res = grow_tree("oak", seed=1, out=tmp_path / "oak", lod="low", render_size=64, age=6)
+    out = tmp_path / "oak"
+    shown = _obj_card_colours(out / "tree.obj", read_glb_textures(out / "tree.glb")["leaves"])
+    assert len(shown) == len(res.foliage)
+    _assert_colours_match(shown, res.foliage.color.astype(np.float64), mean_tol=0.01, p95_tol=0.03)
+
+
+def test_bake_is_exact_for_few_colours_and_keeps_the_geometry(make_cylinder, make_leaves):
+    from treeform.io.obj import _linear_to_srgb, bake_vertex_colors
+    from treeform.structures.mesh import MeshPart
+
+    base = make_leaves(n_leaves=5)
+    col = np.repeat(np.array([[0.1, 0.5, 0.2], [0.9, 0.2, 0.1], [0.3, 0.3, 0.3], [0.1, 0.5, 0.2], [0.05, 0.1, 0.6]]),
+                    4, axis=0)
+    part = MeshPart(base.positions, base.normals, base.uvs, np.column_stack([col, np.ones(20)]), base.indices,
+                    base.material, "leaves")
+    baked = bake_vertex_colors(part)
+    tex = part.material.texture
+    h, w = tex.shape[:2]
+    assert baked.material.texture.shape == (2 * h, 2 * w, 4)  # 4 distinct colours: 2 x 2 tiles
+    assert baked.n_vertices == part.n_vertices and np.all(baked.colors == 1)
+    # same triangles in space, in the same order
+    np.testing.assert_array_equal(baked.positions[baked.indices], part.positions[part.indices])
+    assert baked.material.alpha_mode == "MASK" and part.material.texture is tex  # the input is untouched
+    atlas = baked.material.texture
+    for k in range(5):
+        uv = baked.uvs[baked.indices[2 * k: 2 * k + 2].ravel()]
+        x0, y0 = int(round(uv[:, 0].min() * 2 * w)), int(round(uv[:, 1].min() * 2 * h))
+        assert np.isclose((uv[:, 0].max() - uv[:, 0].min()) * 2 * w, w)
+        tile = atlas[y0:y0 + h, x0:x0 + w]
+        want = np.rint(_linear_to_srgb(_srgb_to_linear(tex[..., :3] / 255.0) * col[4 * k]) * 255)
+        assert np.abs(tile[..., :3].astype(int) - want).max() <= 1
+        np.testing.assert_array_equal(tile[..., 3], tex[..., 3])
+    # nothing to bake: no texture, white colours, or a repeating texture (UVs beyond [0, 1])
+    assert bake_vertex_colors(make_cylinder()) is None
+    assert bake_vertex_colors(base) is None
+    rep = MeshPart(part.positions, part.normals, part.uvs * 3, part.colors, part.indices, part.material)
+    assert bake_vertex_colors(rep) is None
+    # an atlas that would not fit: keep the vertex colours
+    assert bake_vertex_colors(part, max_texels=3 * h * w) is None
+    with pytest.raises(InputError, match="clusters"):
+        bake_vertex_colors(part, clusters=0)
+
+
+def test_bake_clusters_many_colours_deterministically(make_leaves):
+    from treeform.io.obj import bake_vertex_colors
+    from treeform.structures.mesh import MeshPart
+
+    base = make_leaves(n_leaves=400)
+    rng = np.random.default_rng(0)
+    col = np.repeat(rng.uniform(0, 1, (400, 3)), 4, axis=0)
+    part = MeshPart(base.positions, base.normals, base.uvs, np.column_stack([col, np.ones(1600)]), base.indices,
+                    base.material, "leaves")
+    a, b = bake_vertex_colors(part), bake_vertex_colors(part)
+    np.testing.assert_array_equal(a.material.texture, b.material.texture)
+    np.testing.assert_array_equal(a.uvs, b.uvs)
+    h, w = part.material.texture.shape[:2]
+    assert a.material.texture.shape == (8 * h, 8 * w, 4)  # 64 swatches
+    small = bake_vertex_colors(part, clusters=16)
+    assert small.material.texture.shape == (4 * h, 4 * w, 4)
+
+
+def test_obj_keeps_vertex_colours_when_asked(tmp_path, make_leaves):
+    from treeform.structures.mesh import Mesh, MeshPart
+
+    base = make_leaves(n_leaves=3)
+    col = np.column_stack([np.repeat([[0.1, 0.5, 0.2], [0.9, 0.2, 0.1], [0.3, 0.3, 0.3]], 4, axis=0), np.ones(12)])
+    mesh = Mesh([MeshPart(base.positions, base.normals, base.uvs, col, base.indices, base.material, "leaves")])
+    write_obj(mesh, tmp_path / "v.obj", colors="vertex")
+    v = _parse_obj((tmp_path / "v.obj").read_text())[0]
+    assert all(len(x) == 6 for x in v)
+    write_obj(mesh, tmp_path / "b.obj")
+    v = _parse_obj((tmp_path / "b.obj").read_text())[0]
+    assert all(len(x) == 3 for x in v)
+    with pytest.raises(InputError, match="colors"):
+        write_obj(mesh, tmp_path / "x.obj", colors="both")

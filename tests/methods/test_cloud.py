@@ -114,7 +114,7 @@ def test_same_seed_same_bytes_other_seed_differs(real, tmp_path):
     (dict(image=np.zeros((64, 64), np.uint8)), InputError, "image"),
     (dict(out="cloud.gltf"), InputError, "glb"),
     (dict(views="strip.jpg"), InputError, "png"),
-    (dict(out="missing/cloud.glb"), OutputError, "does not exist"),
+    (dict(out="cloud.glb/cloud.glb"), OutputError, "not a directory"),  # a folder under a file
     (dict(segments=0), InputError, "segments"),
     (dict(compactness=-1.0), InputError, "compactness"),
     (dict(colour="red"), InputError, "unknown option"),
@@ -122,7 +122,10 @@ def test_same_seed_same_bytes_other_seed_differs(real, tmp_path):
 def test_bad_inputs_raise_one_clear_error_and_write_nothing(kwargs, error, match, dense_tree_rgba, tmp_path,
                                                              monkeypatch):
     monkeypatch.chdir(tmp_path)
+    if kwargs.get("out", "").startswith("cloud.glb/"):
+        (tmp_path / "cloud.glb").write_bytes(b"")
     kwargs = {"image": dense_tree_rgba, "out": "cloud.glb", **FAST, **kwargs}
+    before = sorted(tmp_path.iterdir())
     with pytest.raises(error, match=match):
         cloud(kwargs.pop("image"), **kwargs)
-    assert list(tmp_path.iterdir()) == []
+    assert sorted(tmp_path.iterdir()) == before

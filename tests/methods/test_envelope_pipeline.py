@@ -12,6 +12,8 @@ from treeform import reconstruct
 from treeform.io import read_glb_counts
 from treeform.methods import METHODS
 
+from preview_checks import assert_panels_show_the_whole_tree
+
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
 FAST = dict(max_size=320, attractors=3000, leaves=2500, rdm_resolution=128)
@@ -59,6 +61,39 @@ def test_reconstruction_matches_the_photo(run):
     # every leaf and attractor-grown node lies inside the crown's RDM (with a card's tolerance)
     inside = res.rdm.contains(res.foliage.positions)
     assert inside.mean() > 0.97
+
+
+def test_preview_labels_every_panel_and_shows_the_whole_tree(run):
+    from PIL import Image
+
+    from treeform.render import Renderer
+    from treeform.report import photo_window
+
+    res, out = run
+    front = res.renders["front"].camera
+    window = photo_window(front, res.camera)
+    h, w = res.photo.shape
+    assert_panels_show_the_whole_tree(res.renders, res.preview, keep=window, first_panels=[(h, w), (h, w)])
+    assert np.array_equal(np.asarray(Image.open(out / "preview.png").convert("RGB")), res.preview)
+    # the front view is the photo's camera, widened: its photo window is that camera's own view
+    assert (front.position, front.target, front.focal) == (res.camera.position, res.camera.target,
+                                                           pytest.approx(res.camera.focal))
+    direct = Renderer(res.camera, samples=1).render(res.mesh).mask
+    assert (direct != res.renders["front"].mask[window]).mean() < 1e-3
+
+
+def test_metrics_report_the_trees_size_as_treeform_metrics_does(run):
+    from treeform.metrics import tree_metrics
+    from treeform.structures import TreeSkeleton
+
+    res, out = run
+    metrics = json.loads((out / "metrics.json").read_text())
+    of_files = tree_metrics(TreeSkeleton.load(out / "skeleton.json"))
+    for key in ("tree_height_m", "crown_extent_x_m", "crown_extent_z_m", "crown_width_m", "max_radial_extent_m"):
+        assert metrics[key] == pytest.approx(of_files[key], abs=1e-4), key
+    assert metrics["crown_width_m"] == pytest.approx(0.5 * (metrics["crown_extent_x_m"] + metrics["crown_extent_z_m"]))
+    # the leaf count is known from the skeleton file alone (no null where the count exists)
+    assert of_files["n_leaves"] == metrics["leaves"] == len(res.foliage) > 0
 
 
 def test_glb_loads_in_trimesh_with_same_counts(run):

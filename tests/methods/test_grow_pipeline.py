@@ -13,6 +13,8 @@ from treeform.growth.leaves import leaf_positions
 from treeform.methods.learned.grow import OUTPUT_FILES, STAGES, grow_tree, shape_metrics
 from treeform.structures import TreeSkeleton
 
+from preview_checks import assert_panels_show_the_whole_tree
+
 FAST = dict(lod="low", render_size=128, age=6)
 
 
@@ -58,13 +60,45 @@ def test_leaves_sit_on_twigs_in_species_green(run):
 
 
 def test_preview_frames_the_tree(run):
-    res, _, _ = run
+    res, out, _ = run
     assert res.preview.ndim == 3 and res.preview.shape[2] == 3
+    assert_panels_show_the_whole_tree(res.renders, res.preview)
+    from PIL import Image
+
+    assert np.array_equal(np.asarray(Image.open(out / "preview.png").convert("RGB")), res.preview)
+    # side and front share one scale (same focal length, distance and image height)
+    f, s = res.renders["front"].camera, res.renders["side"].camera
+    assert s.height == f.height and s.focal == pytest.approx(f.focal)
+    assert np.linalg.norm(np.subtract(s.position, s.target)) == pytest.approx(
+        np.linalg.norm(np.subtract(f.position, f.target)))
+
+
+def test_full_size_previews_fill_their_panels():
+    # the oak (seed 3, full size): broad crown, 17.8 m tall; each view framed on its own extent
+    res = grow_tree("oak", seed=3, lod="low", leaves=1500)
+    assert_panels_show_the_whole_tree(res.renders, res.preview)
     for view in ("front", "side", "top"):
         m = res.renders[view].mask
-        assert m.mean() > 0.02, view
-        # the whole tree is in the picture: nothing touches the border
-        assert not (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()), view
+        ys, xs = np.nonzero(m)
+        assert max(np.ptp(ys) / m.shape[0], np.ptp(xs) / m.shape[1]) > 0.75, view
+
+
+def test_figures_are_the_metrics_modules(run):
+    from treeform.metrics.treeform_metrics import crown_extents, tree_height, tree_metrics
+
+    res, out, _ = run
+    metrics = json.loads((out / "metrics.json").read_text())
+    crown = crown_extents(res.skeleton)
+    assert metrics["height"] == pytest.approx(tree_height(res.skeleton), abs=1e-4)
+    assert metrics["crown_extent_x"] == pytest.approx(crown["crown_extent_x_m"], abs=1e-4)
+    assert metrics["crown_extent_z"] == pytest.approx(crown["crown_extent_z_m"], abs=1e-4)
+    assert metrics["crown_width"] == pytest.approx(0.5 * (crown["crown_extent_x_m"] + crown["crown_extent_z_m"]),
+                                                   abs=1e-4)
+    # the leaf count travels with the skeleton, so metrics of the files report it
+    sk = TreeSkeleton.load(out / "skeleton.json")
+    assert sk.meta["n_leaves"] == len(res.foliage) == metrics["leaves"]
+    assert tree_metrics(sk)["n_leaves"] == len(res.foliage)
+    assert tree_metrics(sk)["crown_width_m"] == pytest.approx(metrics["crown_width"], abs=1e-4)
 
 
 def test_same_seed_same_skeleton_json(tmp_path):
@@ -101,11 +135,11 @@ def test_bad_inputs():
 
 
 def test_unwritable_out_is_one_line_output_error(tmp_path):
-    with pytest.raises(OutputError) as err:
-        grow_tree("oak", out=tmp_path / "missing" / "deeper", **FAST)
-    assert "\n" not in str(err.value)
     f = tmp_path / "file"
     f.write_text("x")
+    with pytest.raises(OutputError) as err:  # missing parent folders are made, but not below a file
+        grow_tree("oak", out=f / "missing" / "deeper", **FAST)
+    assert "\n" not in str(err.value)
     with pytest.raises(OutputError):
         grow_tree("oak", out=f, **FAST)
     if os.geteuid() != 0:
@@ -126,3 +160,5 @@ def test_helpers():
     assert leaf_positions(sk, 0, size=0.2).shape == (0, 3)
     m = shape_metrics(sk)
     assert m["height"] == 1.5 and m["tip_direction_y"] == pytest.approx(np.sqrt(0.5), abs=1e-3)
+    # crown extents: outermost node to outermost node; width their mean
+    assert (m["crown_extent_x"], m["crown_extent_z"], m["crown_width"]) == (1.0, 0.0, 0.5)

@@ -71,3 +71,40 @@ def check_known_options(cls, options: dict) -> dict:
     if unknown:
         raise InputError(f"config: unknown option(s) {', '.join(sorted(unknown))}")
     return dict(options)
+
+
+def check_inputs_exist(inputs) -> None:
+    """Check every input path at once; one :class:`InputError` names all the missing ones.
+
+    Parameters
+    ----------
+    inputs : iterable
+        Paths (``str`` / ``os.PathLike``), ``(label, path)`` pairs (e.g. ``("--mask", p)``,
+        named as ``--mask p``) or ``None`` (an option not given; skipped).
+
+    Raises
+    ------
+    InputError
+        ``"a.png: no such file"`` for one missing path, ``"no such files: a.png, --mask b.png"``
+        for several, in the order given.
+
+    Examples
+    --------
+    >>> check_inputs_exist(["/", None, ("--root", "/")])
+    >>> check_inputs_exist(["/nope/a.png", ("--mask", "/nope/b.png")])
+    Traceback (most recent call last):
+    ...
+    treeform._shared.errors.InputError: no such files: /nope/a.png, --mask /nope/b.png
+    """
+    import os
+
+    missing = []
+    for item in inputs:
+        label, path = item if isinstance(item, tuple) else (None, item)
+        if path is None or os.path.exists(path):
+            continue
+        missing.append(f"{label} {os.fspath(path)}" if label else os.fspath(path))
+    if len(missing) == 1:
+        raise InputError(f"{missing[0]}: no such file")
+    if missing:
+        raise InputError(f"no such files: {', '.join(missing)}")

@@ -12,6 +12,30 @@ import typer
 from treeform import __version__
 from treeform._shared.errors import TreeformError
 
+def _plain_help() -> None:
+    """Usage lines and option tables in the familiar form on every typer version.
+
+    Recent typer prints required arguments as ``{PHOTO}`` in usage lines and a ``<bool>``
+    type beside every flag, ``--help`` included; users read ``PHOTO`` and a bare flag. Both
+    hooks are optional: on versions without them nothing changes.
+    """
+    from typer import core
+
+    arg = getattr(core, "TyperArgument", None)
+    if arg is not None and hasattr(arg, "_usage_display_name"):
+        def _usage_name(self, _orig=arg._usage_display_name):
+            name = _orig(self)
+            return name[1:-1] if name.startswith("{") and name.endswith("}") else name
+        arg._usage_display_name = _usage_name
+    opt = getattr(core, "TyperOption", None)
+    if opt is not None and hasattr(opt, "display_type_rich"):
+        def _type_label(self, ctx, _orig=opt.display_type_rich):
+            return None if getattr(self, "is_bool_flag", False) else _orig(self, ctx)
+        opt.display_type_rich = _type_label
+
+
+_plain_help()
+
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="treeform: photographs of real trees -> 3D tree assets.")
 
@@ -37,6 +61,16 @@ class Lod(str, Enum):
     full = "full"
 
 
+class FoliageKind(str, Enum):
+    auto = "auto"
+    broadleaf = "broadleaf"
+    needles = "needles"
+    scales = "scales"
+
+
+TEXTURE_SIZE_HELP = "Bark texture edge in texels, leaves half of it (default: from the tree's size, >= 512/256)."
+
+
 def _version(value: bool):
     if value:
         typer.echo(f"treeform {__version__}")
@@ -49,27 +83,42 @@ def _main(version: bool = typer.Option(False, "--version", callback=_version, is
     """treeform: photographs of real trees -> 3D tree assets."""
 
 
-def run_api(func, *args, stages=None, display=None, **kwargs):
-    """Run an API call with a rich progress display; TreeformError -> one line, non-zero exit.
+def _fail(message: str, code: int):
+    """The one ``error:`` line on stderr (after any progress display is closed), then exit ``code``."""
+    sys.stdout.flush()
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code)
+
+
+def run_api(func, *args, stages=None, display=None, inputs=(), **kwargs):
+    """Run an API call with a progress display; TreeformError -> one line, non-zero exit.
 
     ``func`` must accept ``progress=callback(stage, event, seconds)``; ``stages`` names its
     stages (for the bar's total; default: the single-photo pipeline's). ``display`` replaces
     the stage bar by another context manager with a ``callback`` (e.g. a
     :class:`~treeform.cli.progress.CountProgress` for ``progress(done, total)``).
+    ``inputs``: the command's input paths (or ``(label, path)`` pairs, None for an option not
+    given), checked all at once before anything starts, so every missing one is named.
+
+    The display is closed (a terminal's unfinished bar erased) before the error line is
+    printed, so ``error: ...`` is always the last line, on its own.
     """
+    from treeform._shared.checks import check_inputs_exist
     from treeform.cli.progress import StageProgress
 
+    try:
+        check_inputs_exist(inputs)
+    except TreeformError as exc:
+        _fail(str(exc), exc.exit_code)
     if display is None:
         display = StageProgress(stages) if stages else StageProgress()
     try:
         with display as prog:
             return func(*args, progress=prog.callback, **kwargs)
     except TreeformError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(exc.exit_code)
+        _fail(str(exc), exc.exit_code)
     except MemoryError:
-        typer.echo("error: out of memory (try a smaller --lod or photo)", err=True)
-        raise typer.Exit(1)
+        _fail("out of memory (try a smaller --lod or photo)", 1)
 
 
 class Method(str, Enum):
@@ -81,8 +130,8 @@ class Method(str, Enum):
 def reconstruct(
     photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
     method: Method = typer.Option(Method.envelope, "--method",
-                                  help="'envelope': crown envelope + RDM + space colonization (paper 001); "
-                                       "'learned': networks + bi-modal growth (paper 003)."),
+                                  help="'envelope': crown envelope + radial distance map + space colonization "
+                                       "(Argudo et al. 2016); 'learned': networks + bi-modal growth (Li et al. 2021)."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output directory."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
@@ -97,6 +146,10 @@ def reconstruct(
     segmenter: Optional[SegmenterName] = typer.Option(
         None, "--segmenter", help="Tree segmentation: 'classical' or 'learned' (default: envelope classical, "
                                   "learned learned)."),
+    foliage: FoliageKind = typer.Option(FoliageKind.auto, "--foliage",
+                                        help="Leaf cards: broadleaf, needles (pine) or scales (thuja); auto: "
+                                             "envelope needles for --crown conical, learned the species'."),
+    texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
@@ -106,17 +159,20 @@ def reconstruct(
         from treeform.methods.learned.pipeline import reconstruct as api
 
         res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
-                      tree_height=height, segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES)
+                      inputs=(photo, ("--mask", mask)),
+                      tree_height=height, segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES,
+                      foliage=foliage.value, texture_size=texture_size)
     else:
         from treeform.methods.envelope.pipeline import reconstruct as api
 
         if species is not None:
             typer.echo("error: --species works with --method learned", err=True)
             raise typer.Exit(2)
-        res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value,
+        res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, inputs=(photo, ("--mask", mask)),
                       leaves=8000 if leaves is None else leaves, lod=lod.value,
                       tree_height=10.0 if height is None else height,
-                      segmenter=(segmenter or SegmenterName.classical).value)
+                      segmenter=(segmenter or SegmenterName.classical).value, foliage=foliage.value,
+                      texture_size=texture_size)
     print_summary(res)
 
 
@@ -132,6 +188,16 @@ def demo(out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Output 
     out.parent.mkdir(parents=True, exist_ok=True)
     res = run_api(api, sample, out=out)
     print_summary(res)
+
+
+@app.command("sample-data")
+def sample_data(out: Path = typer.Option(Path("samples"), "--out", "-o", help="Output directory.")):
+    """Write the bundled sample set: photo.jpg, autumn.jpg and library/ (14 RGBA trees) into OUT."""
+    from treeform.data import SAMPLE_STAGES, write_sample_data
+
+    files = run_api(write_sample_data, out, stages=SAMPLE_STAGES)
+    lib = sum(1 for k in files if k.startswith("library/"))
+    typer.echo(f"photo.jpg, autumn.jpg and {lib} library trees in {out}")
 
 
 def _register_commands() -> None:

@@ -12,17 +12,17 @@ from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
 
 @app.command("cloud")
 def cloud_cmd(
-    image: Path = typer.Argument(..., help="RGBA tree picture (used as it is) or a photo (made into a billboard)."),
+    image: Path = typer.Argument(..., metavar="IMAGE", help="RGBA tree picture (used as it is) or a photo (made into a billboard)."),
     out: Path = typer.Option(..., "--out", "-o", help="Billboard cloud (.glb); its JSON sidecar goes beside it."),
-    segments: int = typer.Option(256, "--segments", help="SLIC superpixels of the crown (paper: 256)."),
+    segments: int = typer.Option(256, "--segments", help="Superpixels (billboards) the crown is cut into (Argudo et al. 2020 use 256)."),
     compactness: float = typer.Option(0.35, "--compactness",
-                                      help="SLIC compactness; lower is more fractal (paper: 0.35)."),
+                                      help="Superpixel compactness; lower follows the leaves more, with more ragged edges (published value 0.35)."),
     seed: int = typer.Option(0, "--seed", help="Random seed: same picture + seed -> identical files."),
     views: Optional[Path] = typer.Option(None, "--views",
                                          help="Also write picture | front | 30° | 60° | 90° views (PNG)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
 ):
-    """Picture of a tree -> billboard cloud (GLB, alpha-tested) with its JSON sidecar (seed 000 §6)."""
+    """Picture of a tree -> billboard cloud: alpha-tested cards at depth (GLB) with a JSON description."""
     from treeform.methods.variations.cloud import CLOUD_STAGES, cloud
 
     res = run_api(cloud, image, out=out, views=views, segments=segments, compactness=compactness, seed=seed,

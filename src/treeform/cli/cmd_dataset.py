@@ -22,12 +22,17 @@ def generate_cmd(
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. tcp://host:8786."),
     seed: int = typer.Option(0, "--seed", help="Global seed: sample i depends only on (seed, i)."),
-    shard_size: int = typer.Option(1000, "--shard-size", help="Samples per tar shard."),
+    shard_size: int = typer.Option(1000, "--shard-size", help="Samples per tar shard (resuming is per sample, "
+                                                                "whatever the shard size)."),
     mesh: bool = typer.Option(False, "--mesh/--no-mesh", help="Also store each tree's GLB."),
     backgrounds: Optional[Path] = typer.Option(None, "--backgrounds", help="Folder of your own background photos."),
     photo_fraction: float = typer.Option(0.5, "--photo-fraction", help="Share of samples over your photos."),
 ):
-    """Render N grown trees over varied backgrounds on Dask; rerun to resume (seed 003 §4.2.1)."""
+    """Render N grown trees over varied backgrounds on Dask; rerun the same command to resume.
+
+    Every sample is stored the moment it is made (OUT/partial/ until its shard is complete),
+    so an interrupted run loses only the samples in progress; rerun the same command to go on.
+    """
     from treeform.cli.progress import CountProgress
     from treeform.dataset import generate_dataset
 
@@ -35,13 +40,15 @@ def generate_cmd(
                   seed=seed, shard_size=shard_size, mesh=mesh, backgrounds=backgrounds, photo_fraction=photo_fraction,
                   display=CountProgress("samples"))
     rate = f" in {res.seconds:.1f} s ({res.samples_per_second:.2f} samples/s on {res.workers} workers)" if res.seconds else ""
+    kept = f"; {res.kept} sample(s) kept from an interrupted run" if res.kept else ""
     typer.echo(f"{res.generated} samples in {len(res.shards_written)} new shard(s){rate}; "
-               f"{len(res.shards_skipped)} shard(s) already done; {len(res.failed)} failed (see failures.json) -> {out}")
+               f"{len(res.shards_skipped)} shard(s) already done{kept}; {len(res.failed)} failed (see failures.json) "
+               f"-> {out}")
 
 
 @dataset_app.command("show")
 def show_cmd(
-    directory: Path = typer.Argument(..., help="A generated dataset directory."),
+    directory: Path = typer.Argument(..., metavar="DATASET", help="A generated dataset directory."),
     n: int = typer.Option(16, "--n", "-n", help="Number of samples on the sheet."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Sheet path (default DIR/contact_sheet.png)."),
 ):

@@ -13,20 +13,27 @@ from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
 @app.command("segment")
 def segment_cmd(
     photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
-    out: Path = typer.Option(..., "--out", "-o", help="labels.png: 8-bit, 0 background, 1 foliage, 2 wood."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="labels.png: 8-bit, 0 background, 1 foliage, 2 wood."),
     overlay: Optional[Path] = typer.Option(None, "--overlay", help="Also write the photo with the labels tinted (PNG)."),
+    mask: Optional[Path] = typer.Option(None, "--mask", help="Also write the tree as a white-on-black mask "
+                                                             "(what `reconstruct --mask` reads)."),
+    wood: Optional[Path] = typer.Option(None, "--wood", help="Also write the trunk and branches as a white-on-black "
+                                                             "mask (what `grow --mask` reads)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
     seed: int = typer.Option(0, "--seed", help="Seed of the classical graph cut."),
 ):
     """Segment the main tree of a photo: background / foliage / wood labels at the photo's size."""
     from treeform.methods.learned.perception import SEGMENT_STAGES, segment_photo
 
-    res = run_api(segment_photo, photo, out=out, overlay=overlay, segmenter=segmenter.value, seed=seed,
-                  stages=SEGMENT_STAGES)
+    if out is None and overlay is None and mask is None and wood is None:
+        typer.echo("error: nothing to write: give --out labels.png and/or --overlay, --mask, --wood", err=True)
+        raise typer.Exit(2)
+    res = run_api(segment_photo, photo, out=out, overlay=overlay, mask=mask, wood=wood, segmenter=segmenter.value,
+                  seed=seed, stages=SEGMENT_STAGES)
     f = res.fractions
     h, w = res.segmentation.shape
-    typer.echo(f"{out}: {w}x{h} labels, foliage {100 * f['foliage']:.1f} %, wood {100 * f['wood']:.1f} % of the photo"
-               + (f"; overlay {overlay}" if overlay else ""))
+    typer.echo(f"{w}x{h} photo: foliage {100 * f['foliage']:.1f} %, wood {100 * f['wood']:.1f} % -> "
+               + ", ".join(str(p) for p in res.files.values()))
 
 
 @app.command("species")

@@ -28,7 +28,8 @@ def seg_cmd(
     from treeform.learn.train import train_seg
 
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, steps=steps, batch=batch, seed=seed,
-                display=TrainProgress("seg"))
+                display=TrainProgress("seg"),
+                inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts)))
     r, c = m.get("renders"), m.get("cutouts")
     if r:
         typer.echo(f"test renders: mean IoU {100 * r['mean_iou']:.1f} % "
@@ -43,7 +44,8 @@ def _mask_cmd(kind: str, data, out, test_data, seg_weights, epochs, seed):
     from treeform.learn.train_masks import train_masknet
 
     m = run_api(train_masknet, kind, data, out, test_data=test_data, seg_weights=seg_weights, epochs=epochs, seed=seed,
-                display=TrainProgress(kind))
+                display=TrainProgress(kind),
+                inputs=(("--data", data), ("--test-data", test_data), ("--seg-weights", seg_weights)))
     for which, name in (("gt", "true masks"), ("pred", "predicted masks")):
         r = (m.get("test") or {}).get(which)
         if r and kind == "species":

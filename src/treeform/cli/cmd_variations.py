@@ -17,7 +17,7 @@ _CACHE = typer.Option(None, "--cache", help="Exemplar cache directory (default: 
 
 @library_app.command("process")
 def library_process(
-    directory: Path = typer.Argument(..., help="Directory of RGBA tree images (.png, .webp, .tif)."),
+    directory: Path = typer.Argument(..., metavar="LIBRARY", help="Directory of RGBA tree images (.png, .webp, .tif)."),
     cache: Optional[Path] = _CACHE,
     sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write a contact sheet of the exemplars (PNG)."),
 ):
@@ -31,47 +31,48 @@ def library_process(
 
 @app.command("vary")
 def vary_cmd(
-    library: Path = typer.Argument(..., help="Directory of RGBA tree images."),
+    library: Path = typer.Argument(..., metavar="LIBRARY", help="Directory of RGBA tree images."),
     n: int = typer.Option(20, "-n", help="Number of variations."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory (PNGs, contact_sheet.png, config.json)."),
     from_tree: Optional[Path] = typer.Option(None, "--from", help="Make variations of this RGBA tree."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    season: Optional[Path] = typer.Option(None, "--season", help="Reference image for histogram transfer."),
+    season: Optional[Path] = typer.Option(None, "--season", help="Photo of a tree whose crown and trunk colours the new trees take (only the tree's pixels count)."),
+    any_form: bool = typer.Option(False, "--any-form", help="Blend trees of any growth form (default: broadleaf with broadleaf, conifer with conifer, palm with palm)."),
     cache: Optional[Path] = _CACHE,
 ):
-    """New trees from random convex combinations of the library's trees (seed 000 §5)."""
+    """New tree images: each a random blend of the library's tree shapes, coloured from them."""
     from treeform.methods.variations.pipeline import vary, vary_stages
 
     res = run_api(vary, library, n=n, out=out, from_tree=from_tree, season=season, cache_dir=cache, seed=seed,
-                  stages=vary_stages(n))
+                  any_form=any_form, stages=vary_stages(n), inputs=(library, ("--from", from_tree), ("--season", season)))
     typer.echo(f"{len(res.images)} variations and contact_sheet.png in {out}")
 
 
 @app.command("morph")
 def morph_cmd(
-    a: Path = typer.Argument(..., help="First RGBA tree."),
-    b: Path = typer.Argument(..., help="Second RGBA tree."),
+    a: Path = typer.Argument(..., metavar="TREE_A", help="First RGBA tree."),
+    b: Path = typer.Argument(..., metavar="TREE_B", help="Second RGBA tree."),
     steps: int = typer.Option(7, "--steps", help="Number of frames, t = 0 .. 1."),
     out: Path = typer.Option(..., "--out", "-o", help="Strip of frames (PNG)."),
     cache: Optional[Path] = _CACHE,
 ):
-    """Morph one tree into another through convex combinations (seed 000 §5.1, Fig. 7)."""
+    """Morph one tree image into another, in STEPS frames."""
     from treeform.methods.variations.pipeline import MORPH_STAGES, morph
 
-    run_api(morph, a, b, steps=steps, out=out, cache_dir=cache, stages=MORPH_STAGES)
+    run_api(morph, a, b, steps=steps, out=out, cache_dir=cache, stages=MORPH_STAGES, inputs=(a, b))
     typer.echo(f"{steps} frames in {out}")
 
 
 @app.command("billboard")
 def billboard_cmd(
-    photo: Path = typer.Argument(..., help="Photo of a tree (JPEG, PNG, ...)."),
+    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
     out: Path = typer.Option(..., "--out", "-o", help="RGBA billboard (PNG)."),
     sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write photo | trimap | billboard (PNG)."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    sky_gaps: bool = typer.Option(False, "--sky-gaps/--no-sky-gaps", help="Also make sky seen through gaps in the crown transparent (beyond the paper)."),
+    sky_gaps: bool = typer.Option(False, "--sky-gaps/--no-sky-gaps", help="Also make sky seen through gaps in the crown transparent."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
 ):
-    """Photo -> RGBA billboard by segmentation, trimap and alpha matting (seed 000 §4.3)."""
+    """Photo -> RGBA billboard: the tree cut out of its background with a soft alpha (matting)."""
     from treeform.methods.variations.pipeline import BILLBOARD_STAGES, billboard
 
     res = run_api(billboard, photo, out=out, sheet=sheet, seed=seed, sky_gaps=sky_gaps, segmenter=segmenter.value,

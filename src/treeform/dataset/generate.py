@@ -1,4 +1,4 @@
-"""Generate a synthetic dataset on Dask distributed: resumable shards, retries, a failures list.
+"""Generate a synthetic dataset on Dask distributed: resumable per sample, retries, a failures list.
 
 :func:`generate_dataset` splits ``n`` samples into shards of ``shard_size``, skips shards a
 previous run finished (listed in the manifest, file present with the recorded size), and
@@ -6,9 +6,15 @@ runs one Dask task per sample on a :class:`distributed.LocalCluster` (``workers`
 processes, one thread each) or on an existing scheduler (``scheduler="tcp://host:port"``,
 workers started with ``dask worker`` in an environment where treeform is installed). A task
 that raises is retried once by Dask; if it fails again the sample is recorded in
-``failures.json`` and left out of its shard; the run goes on. A shard is written (atomically)
-as soon as all its samples are resolved, then the manifest is updated, so an interrupted
-run loses at most the shards in flight.
+``failures.json`` and left out of its shard; the run goes on.
+
+Resuming: the manifest (with the settings) is written before the first sample; each sample
+is stored the moment it arrives, atomically, as ``partial/<index>.tar``; a shard is written
+(atomically, from those files) as soon as all its samples are resolved, then the manifest is
+updated and the shard's partial files deleted. A killed run (even ``SIGKILL``) therefore
+loses only the samples being computed at that moment (a few seconds of work); a rerun with
+the same options keeps every stored sample, makes the rest, and writes byte-identical
+shards (sample i depends only on (seed, i)).
 """
 
 from __future__ import annotations
@@ -25,10 +31,15 @@ from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError, OutputError, TreeformError
 from treeform.dataset.storage import (
     FORMAT,
+    PARTIAL,
     encode_sample,
+    partial_indices,
+    partial_path,
     read_manifest,
+    read_partial,
     shard_name,
     write_manifest,
+    write_partial,
     write_shard,
 )
 from treeform.dataset.synthetic import SampleOptions, make_sample
@@ -49,6 +60,8 @@ class GenerateResult:
     n: int
     generated: int = 0
     """Samples made (and stored) by this run."""
+    kept: int = 0
+    """Samples an interrupted run had made and stored (``partial/``), reused by this run."""
     failed: list = field(default_factory=list)
     """Indices that failed twice in this run."""
     shards_written: list = field(default_factory=list)
@@ -138,7 +151,8 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
     seed : int
         Global seed: sample i depends only on (seed, i) and the options.
     shard_size : int
-        Samples per tar shard.
+        Samples per tar shard (samples are stored one by one until their shard is complete,
+        so the shard size does not change how much work a kill loses).
     mesh : bool
         Also store each tree's GLB.
     backgrounds : path, optional
@@ -148,7 +162,9 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
     lod : str
         Mesh triangle budget (see :data:`treeform.geometry.LOD_PRESETS`).
     progress : callable, optional
-        ``progress(done, total)`` after every resolved sample of this run.
+        ``progress(done, total)`` once at the start (``done``: samples of unfinished shards an
+        interrupted run already stored) and after every resolved sample; ``total``: the
+        samples of the unfinished shards.
 
     Returns
     -------
@@ -200,37 +216,69 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
 
         manifest = {**identity, "species_names": list(SPECIES), "treeform": __version__, "shards": {},
                     "labels": {"background": 0, "foliage": 1, "branch": 2}}
+        _clear_partial(out)  # no manifest: any partial samples were made with unknown settings
     manifest["n"] = max(n, int(manifest.get("n", 0)))
     failures = read_failures(out)
+    for tmp in ("manifest.json.tmp", "failures.json.tmp", *(p.name for p in out.glob("shard-*.tar.tmp"))):
+        (out / tmp).unlink(missing_ok=True)  # leftovers of a killed write
 
     res = GenerateResult(out=out, n=n)
+    stored = partial_indices(out)
     pending: dict[str, dict] = {}
     for k in range(math.ceil(n / shard_size)):
         first, count = k * shard_size, min(shard_size, n - k * shard_size)
         name = shard_name(k)
         done = manifest["shards"].get(name)
+        indices = range(first, first + count)
         if (done and done["first"] == first and done["count"] == count and (out / name).exists()
                 and (out / name).stat().st_size == done["bytes"]):
             res.shards_skipped.append(name)
+            for i in stored.intersection(indices):  # killed after the manifest, before the clean-up
+                partial_path(out, i).unlink(missing_ok=True)
         else:
-            pending[name] = {"first": first, "count": count, "results": {}, "failed": []}
+            kept = stored.intersection(indices)
+            res.kept += len(kept)
+            pending[name] = {"first": first, "count": count, "kept": kept, "failed": []}
     if not pending:
+        _clear_partial(out, only_if_empty=True)
         return res
 
     total = sum(s["count"] for s in pending.values())
+    if progress is not None:
+        progress(res.kept, total)
     t0 = time.perf_counter()
-    client, cluster = _client(workers or os.cpu_count() or 1, scheduler)
-    try:
-        res.workers = len(client.scheduler_info().get("workers", {}))
-        _run(client, sample_members, pending, seed, options, backgrounds, float(photo_fraction), out, manifest,
-             failures, res, total, progress)
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    for name, shard in list(pending.items()):  # killed after its last sample: nothing left to make
+        if len(shard["kept"]) == shard["count"]:
+            _finish_shard(name, pending.pop(name), out, manifest, failures, res)
+    if pending:
+        client, cluster = _client(workers or os.cpu_count() or 1, scheduler)
+        try:
+            write_manifest(out, manifest)  # the settings before any sample: stored samples are attributable
+            res.workers = len(client.scheduler_info().get("workers", {}))
+            _run(client, sample_members, pending, seed, options, backgrounds, float(photo_fraction), out, manifest,
+                 failures, res, total, progress, done=res.kept)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    _clear_partial(out, only_if_empty=True)
     res.seconds = time.perf_counter() - t0
     res.failed.sort()
     return res
+
+
+def _clear_partial(out: Path, *, only_if_empty: bool = False) -> None:
+    """Delete ``out/partial`` (all of it, or only the empty folder)."""
+    folder = out / PARTIAL
+    if not folder.is_dir():
+        return
+    try:
+        if not only_if_empty:
+            for p in folder.iterdir():
+                p.unlink(missing_ok=True)
+        folder.rmdir()
+    except OSError:
+        pass  # not empty (only_if_empty) or not ours to remove: harmless
 
 
 def read_failures(directory) -> dict:
@@ -247,15 +295,21 @@ def read_failures(directory) -> dict:
 
 
 def _run(client, task, pending, seed, options, backgrounds, photo_fraction, out, manifest, failures, res, total,
-         progress):
+         progress, done: int = 0):
     """Run ``task(seed, index, options, backgrounds, photo_fraction) -> members`` for every pending
-    index (a sliding window of futures, one Dask retry each) and write each shard when it is resolved."""
+    index not yet stored (a sliding window of futures, one Dask retry each); store each sample
+    the moment it arrives and write each shard when all its samples are resolved.
+
+    ``pending``: ``{shard name: {"first", "count", "kept": set of stored indices, "failed": []}}``;
+    ``done``: the count ``progress(done, total)`` starts from.
+    """
     from distributed import as_completed
 
     by_index = {}
     for name, shard in pending.items():
         for i in range(shard["first"], shard["first"] + shard["count"]):
-            by_index[i] = name
+            if i not in shard["kept"]:
+                by_index[i] = name
     queue = iter(sorted(by_index))
     window = max(32, 8 * max(res.workers, 1))
 
@@ -268,14 +322,16 @@ def _run(client, task, pending, seed, options, backgrounds, photo_fraction, out,
         futures[submit(i)] = i
         if len(futures) >= window:
             break
-    done = 0
     ac = as_completed(list(futures))
     for fut in ac:
         i = futures.pop(fut)
         shard = pending[by_index[i]]
         if fut.status == "finished":
-            shard["results"][i] = fut.result()
-            failures.pop(i, None)
+            write_partial(out, i, fut.result())
+            shard["kept"].add(i)
+            res.generated += 1
+            if failures.pop(i, None) is not None:
+                _write_failures(out, failures)
         else:
             exc = fut.exception()
             msg = f"{type(exc).__name__}: {exc}" if not isinstance(exc, TreeformError) else str(exc)
@@ -283,11 +339,12 @@ def _run(client, task, pending, seed, options, backgrounds, photo_fraction, out,
             shard["failed"].append(i)
             failures[i] = {"index": i, "error": msg, "attempts": 2}
             res.failed.append(i)
+            _write_failures(out, failures)
         fut.release()
         done += 1
         if progress is not None:
             progress(done, total)
-        if len(shard["results"]) + len(shard["failed"]) == shard["count"]:
+        if len(shard["kept"]) + len(shard["failed"]) == shard["count"]:
             _finish_shard(by_index[i], shard, out, manifest, failures, res)
         nxt = next(queue, None)
         if nxt is not None:
@@ -296,13 +353,18 @@ def _run(client, task, pending, seed, options, backgrounds, photo_fraction, out,
             ac.add(f)
 
 
-def _finish_shard(name, shard, out, manifest, failures, res):
-    samples = [shard["results"][i] for i in sorted(shard["results"])]
-    facts = write_shard(out / name, samples)
-    res.generated += len(samples)
-    res.shards_written.append(name)
-    manifest["shards"][name] = {"first": shard["first"], "count": shard["count"], "samples": len(samples),
-                                "failed": sorted(shard["failed"]), **facts}
+def _write_failures(out, failures):
     write_manifest(out, [failures[k] for k in sorted(failures)], "failures.json")
+
+
+def _finish_shard(name, shard, out, manifest, failures, res):
+    """Write a shard from its stored samples, record it in the manifest, then delete those samples."""
+    indices = sorted(shard["kept"])
+    facts = write_shard(out / name, (read_partial(out, i) for i in indices))
+    res.shards_written.append(name)
+    manifest["shards"][name] = {"first": shard["first"], "count": shard["count"], "samples": len(indices),
+                                "failed": sorted(shard["failed"]), **facts}
+    _write_failures(out, failures)
     write_manifest(out, manifest)
-    shard["results"].clear()
+    for i in indices:
+        partial_path(out, i).unlink(missing_ok=True)

@@ -25,6 +25,9 @@ __all__ = ["SyntheticDataset", "TorchSynthetic", "torch_dataset"]
 class SyntheticDataset:
     """The samples of a dataset directory (every finished shard), by position 0 .. len-1.
 
+    Samples of an interrupted run that wait in ``partial/`` for the rest of their shard are
+    not included: rerun the generation to finish their shard.
+
     Parameters
     ----------
     directory : path

@@ -14,10 +14,16 @@ Layout of a dataset directory::
                                params, meta (camera, lights, materials, background)
         00000000.skeleton.json the branch graph (TreeSkeleton JSON)
         00000000.glb           the mesh (only with ``mesh=True``)
+    partial/             while a run is under way: each finished sample of a shard not yet
+                         written, as its own small tar of the same members (``00000123.tar``),
+                         written atomically the moment the sample arrives. A rerun keeps them
+                         (a kill loses only the samples being computed), builds each shard from
+                         them once all its samples are in, then deletes them.
 
 Tar headers carry no time, owner or permissions that vary, and PNGs are written with fixed
 settings, so a shard's bytes depend only on its samples: regenerating a sample from
-(seed, index) gives byte-identical members.
+(seed, index) gives byte-identical members, and a shard built from kept partial samples is
+byte-identical to one written by an uninterrupted run.
 """
 
 from __future__ import annotations
@@ -32,11 +38,14 @@ import numpy as np
 
 from treeform._shared.errors import InputError, OutputError
 
-__all__ = ["MEMBER_SUFFIXES", "decode_sample", "encode_sample", "read_manifest", "read_shard", "shard_name",
-           "write_manifest", "write_shard", "FORMAT"]
+__all__ = ["MEMBER_SUFFIXES", "PARTIAL", "decode_sample", "encode_sample", "partial_indices", "partial_path",
+           "read_manifest", "read_partial", "read_shard", "shard_name", "write_manifest", "write_partial",
+           "write_shard", "FORMAT"]
 
 FORMAT = "treeform-synthetic-trees/1"
 MEMBER_SUFFIXES = ("image.png", "mask.png", "rgba.png", "json", "skeleton.json", "glb")
+PARTIAL = "partial"
+"""Folder (in a dataset directory) of the finished samples of shards not yet written."""
 
 
 def shard_name(k: int) -> str:
@@ -108,8 +117,8 @@ def decode_sample(members: dict) -> dict:
     return out
 
 
-def write_shard(path, samples: list) -> dict:
-    """Write encoded samples (dicts of members, in index order) to a tar atomically; its facts.
+def write_shard(path, samples) -> dict:
+    """Write encoded samples (dicts of members, in index order; any iterable) to a tar atomically; its facts.
 
     Returns
     -------
@@ -139,7 +148,57 @@ def write_shard(path, samples: list) -> dict:
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise OutputError(f"{path}: cannot write the shard ({exc.strerror or exc})") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return {"bytes": size, "sha256": digest}
+
+
+def partial_path(directory, index: int) -> Path:
+    """Where sample ``index`` waits for its shard: ``DIR/partial/00000123.tar``."""
+    return Path(directory) / PARTIAL / f"{int(index):08d}.tar"
+
+
+def write_partial(directory, index: int, members: dict) -> Path:
+    """Store one finished sample at once (atomically), until its shard is written."""
+    path = partial_path(directory, index)
+    try:
+        path.parent.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{path.parent}: cannot create ({exc.strerror or exc})") from None
+    write_shard(path, [members])
+    return path
+
+
+def read_partial(directory, index: int) -> dict:
+    """The members of a stored partial sample."""
+    samples = read_shard(partial_path(directory, index))
+    if len(samples) != 1:
+        raise InputError(f"{partial_path(directory, index)}: expected one sample, found {len(samples)}")
+    return samples[0]
+
+
+def partial_indices(directory) -> set[int]:
+    """Indices of the partial samples stored in ``DIR/partial`` (complete files only).
+
+    Leftovers of a killed write (``*.tmp``) and files that cannot be whole tars (size not a
+    positive multiple of 512 bytes) are deleted: those samples are simply made again.
+    """
+    folder = Path(directory) / PARTIAL
+    if not folder.is_dir():
+        return set()
+    found = set()
+    for p in folder.iterdir():
+        stem = p.name[:-4] if p.name.endswith(".tar") else None
+        try:
+            size = p.stat().st_size
+        except OSError:
+            continue
+        if stem is not None and stem.isdigit() and len(stem) == 8 and size >= 1024 and size % 512 == 0:
+            found.add(int(stem))
+        elif p.name.endswith(".tmp") or stem is not None:
+            p.unlink(missing_ok=True)
+    return found
 
 
 def read_shard(path) -> list[dict]:

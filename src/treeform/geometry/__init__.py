@@ -3,6 +3,7 @@
 - :func:`branch_mesh` — one smooth tube per branch chain (parallel-transport frames).
 - :func:`leaf_cards`, :func:`leaf_texture` — alpha-masked leaf quads and their texture.
 - :func:`tree_mesh`, :data:`LOD_PRESETS` — both parts under a triangle budget.
+- :func:`tree_textures`, :func:`texture_sizes` — a tree's bark and leaf (broadleaf, needle, scale) textures.
 - :func:`normal_map_from_height`, :func:`texture_height` — tangent-space normal maps.
 - :mod:`treeform.geometry.billboard_cloud` — superpixel billboards, atlas, placement, cloud mesh (seed 000 §6).
 """
@@ -10,15 +11,18 @@
 from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage
 from treeform.geometry.lod import LOD_PRESETS, plan_lod, tree_mesh
 from treeform.geometry.normal_maps import normal_map_from_height, texture_height
+from treeform.geometry.textures import FOLIAGE_KINDS, foliage_coverage, texture_sizes, tree_textures
 from treeform.geometry.tubes import MIN_RING_RADIUS, bark_material, bark_texture, branch_mesh, tube_triangle_count
 
 __all__ = [
     "CLUSTER_COVERAGE",
+    "FOLIAGE_KINDS",
     "LOD_PRESETS",
     "MIN_RING_RADIUS",
     "bark_material",
     "bark_texture",
     "branch_mesh",
+    "foliage_coverage",
     "leaf_cards",
     "leaf_material",
     "leaf_texture",
@@ -26,6 +30,8 @@ __all__ = [
     "plan_lod",
     "texture_coverage",
     "texture_height",
+    "texture_sizes",
     "tree_mesh",
+    "tree_textures",
     "tube_triangle_count",
 ]

@@ -1,4 +1,7 @@
-"""Leaves: procedural alpha-masked leaf textures and one textured quad (card) per leaf."""
+"""Leaves: procedural alpha-masked leaf textures and one textured quad (card) per leaf.
+
+Conifer kinds (needle clusters, scale sprays) are drawn by :mod:`treeform.geometry.needles`.
+"""
 
 from __future__ import annotations
 
@@ -9,10 +12,14 @@ import numpy as np
 from treeform._shared.checks import check_choice
 from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
+from treeform.geometry.textures import LEAF_TEXTURE_SIZE
 from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, MeshPart
 
-__all__ = ["CLUSTER_COVERAGE", "leaf_cards", "leaf_material", "leaf_texture", "texture_coverage"]
+__all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "leaf_cards", "leaf_material", "leaf_texture", "texture_coverage"]
+
+TEXTURE_KINDS = ("cluster", "leaf", "needles", "scales")
+"""Kinds of :func:`leaf_texture`: a broadleaf cluster, one leaf, a needle cluster, a scale spray."""
 
 CLUSTER_COVERAGE = 0.65
 """Target opaque fraction (alpha > 0.5) of a ``kind="cluster"`` texture."""
@@ -152,7 +159,7 @@ def _stroke(alpha, rgb, p0, p1, half_width, res):
         rgb[lo[1]:hi[1], lo[0]:hi[0]][m] = _STEM_RGB
 
 
-def leaf_texture(size: int = 128, *, seed=0, kind: str = "cluster") -> np.ndarray:
+def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster") -> np.ndarray:
     """A procedural leaf texture with an alpha mask, for alpha-tested leaf cards.
 
     ``kind="cluster"``: 14-18 ovate, pointed leaf blades on short petioles radiating from a
@@ -161,16 +168,20 @@ def leaf_texture(size: int = 128, *, seed=0, kind: str = "cluster") -> np.ndarra
     (0.65 ± 0.005 over 100 seeds at 128²). ``kind="leaf"``: one blade on a petiole, base at the bottom edge, tip
     at the top. Blades have a lighter midrib and pinnate veins and a little per-blade
     shading; colours are light grey-green (luminance ≈ 0.9) so the card's vertex colour
-    tints them. Edges are antialiased by supersampling (4×4 up to 128², fewer above); transparent texels carry the
-    mean leaf colour so filtering leaves no dark fringe.
+    tints them. ``kind="needles"``: pine-like shoots fanning from a twig, bottle-brushes of
+    thin pointed needles (about 0.3 opaque); ``kind="scales"``: a flat, thuja-like spray of
+    overlapping scale leaves (about 0.3 opaque) -- see :mod:`treeform.geometry.needles`.
+    Edges are antialiased by supersampling (4×4 up to 128², fewer above); transparent texels
+    carry the mean leaf colour so filtering leaves no dark fringe.
 
     Parameters
     ----------
     size : int
-        Edge length in texels (>= 8).
+        Edge length in texels (>= 8); default 256
+        (:data:`~treeform.geometry.textures.LEAF_TEXTURE_SIZE`).
     seed : int or numpy.random.Generator
         Randomness; same seed -> identical texture.
-    kind : {"cluster", "leaf"}
+    kind : {"cluster", "leaf", "needles", "scales"}
 
     Returns
     -------
@@ -185,8 +196,12 @@ def leaf_texture(size: int = 128, *, seed=0, kind: str = "cluster") -> np.ndarra
     """
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 8:
         raise InputError(f"size: expected an integer >= 8, got {size!r}")
-    check_choice(kind, "kind", ("cluster", "leaf"))
+    check_choice(kind, "kind", TEXTURE_KINDS)
     size = int(size)
+    if kind in ("needles", "scales"):
+        from treeform.geometry.needles import conifer_texture
+
+        return conifer_texture(size, seed=seed, kind=kind)
     rng = as_rng(seed)
     layout = _layout(rng, kind)
     scale = 1.0
@@ -202,9 +217,22 @@ def leaf_texture(size: int = 128, *, seed=0, kind: str = "cluster") -> np.ndarra
             cov = _render(layout, res, mid, shade=False)[0].mean()
             lo, hi = (mid, hi) if cov < CLUSTER_COVERAGE else (lo, mid)
         scale = 0.5 * (lo + hi)
-    ss = 4 if size <= 128 else 3 if size <= 256 else 2
+    ss = _supersampling(size)
     alpha, rgb = _render(layout, size * ss, scale, shade=True, texel=1.0 / size)
-    # box-filter down; colour averaged over the covered sub-samples
+    return _downsample(alpha, rgb, size, ss)
+
+
+def _supersampling(size: int) -> int:
+    """Sub-samples per texel edge used to antialias a ``size``² texture (4 up to 128², fewer above)."""
+    return 4 if size <= 128 else 3 if size <= 256 else 2
+
+
+def _downsample(alpha: np.ndarray, rgb: np.ndarray, size: int, ss: int) -> np.ndarray:
+    """Box-filter a (size·ss)² alpha and RGB raster to a (size, size, 4) uint8 texture.
+
+    Colour is averaged over the covered sub-samples only; transparent texels carry the mean
+    colour of the covered ones, so filtering leaves no dark fringe.
+    """
     a = alpha.reshape(size, ss, size, ss).mean(axis=(1, 3))
     pre = (rgb * alpha[..., None]).reshape(size, ss, size, ss, 3).sum(axis=(1, 3))
     cnt = alpha.reshape(size, ss, size, ss).sum(axis=(1, 3))
@@ -227,7 +255,7 @@ def leaf_material(texture=None, *, seed=0) -> Material:
     """The ``"leaves"`` material: alpha MASK at 0.5, double-sided, the given (or default) texture."""
     if texture is None:
         seed = 0 if isinstance(seed, np.random.Generator) or seed is None else int(seed)
-        texture = _default_leaf(128, seed, "cluster").copy()
+        texture = _default_leaf(LEAF_TEXTURE_SIZE, seed, "cluster").copy()
     else:
         texture = np.asarray(texture)
         if texture.ndim != 3 or texture.shape[2] != 4 or texture.dtype != np.uint8:
@@ -251,7 +279,7 @@ def leaf_cards(foliage: Foliage, *, texture=None, size_scale: float = 1.0) -> Me
     foliage : Foliage
         M leaves.
     texture : ndarray, shape (H, W, 4), uint8, optional
-        Leaf texture; default ``leaf_texture(128, seed=0, kind="cluster")``.
+        Leaf texture; default ``leaf_texture(256, seed=0, kind="cluster")``.
     size_scale : float or ndarray of shape (M,)
         Multiplier of the card sizes (the LOD uses it to enlarge subsampled leaves).
 

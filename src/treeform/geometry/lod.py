@@ -103,7 +103,7 @@ def plan_lod(chain_lengths, chain_radius, n_leaves: int, *, max_triangles=None, 
 
 
 def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=None, radial_segments: int = 8,
-              leaf_texture=None, seed=0) -> Mesh:
+              leaf_texture=None, bark_texture=None, seed=0) -> Mesh:
     """The tree as a :class:`Mesh`: a ``"bark"`` part (tubes) and a ``"leaves"`` part (cards).
 
     With ``max_triangles`` the total triangle count is guaranteed not to exceed it; when the
@@ -123,7 +123,10 @@ def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=
     radial_segments : int
         Sides per branch ring at full detail (>= 3).
     leaf_texture : ndarray, shape (H, W, 4), uint8, optional
-        Default ``leaf_texture(128, seed=seed, kind="cluster")``.
+        Default ``leaf_texture(256, seed=seed, kind="cluster")``.
+    bark_texture : ndarray, shape (H, W, 4), uint8, optional
+        Default ``bark_texture(512, seed=0)``; :func:`~treeform.geometry.tree_textures` sizes
+        both textures for a tree.
     seed : int or numpy.random.Generator
         Selects the kept leaves and the default leaf texture; same seed -> identical mesh.
 
@@ -159,13 +162,14 @@ def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=
     keep = plan["keep_chains"]
     root_flags = np.arange(len(chains)) == 0
     bark = _tubes._tubes(skeleton, [c for c, k in zip(chains, keep) if k], root_flags[keep],
-                         plan["radial_segments"], cap_starts=False, material=_tubes.bark_material())
+                         plan["radial_segments"], cap_starts=False, material=_tubes.bark_material(bark_texture))
     parts = [bark] if bark.n_triangles else []
     kept = plan["keep_leaves"]
     if kept.any():
         sub = foliage if kept.all() else Foliage(foliage.positions[kept], foliage.normals[kept], foliage.up[kept],
                                                  foliage.size[kept], foliage.color[kept], foliage.node[kept])
-        tex = leaf_texture if leaf_texture is not None else _leaves._default_leaf(128, tex_seed, "cluster").copy()
+        tex = leaf_texture if leaf_texture is not None else \
+            _leaves._default_leaf(_leaves.LEAF_TEXTURE_SIZE, tex_seed, "cluster").copy()
         parts.append(_leaves.leaf_cards(sub, texture=tex, size_scale=plan["leaf_scale"]))
     mesh = Mesh(parts)
     if max_triangles is not None and mesh.n_triangles > max_triangles:  # pragma: no cover - plan guarantees it

@@ -22,6 +22,7 @@ from treeform._shared.checks import check_positive
 from treeform._shared.errors import InputError
 from treeform._shared.noise import periodic_noise
 from treeform._shared.rng import as_rng
+from treeform.geometry.textures import BARK_TEXTURE_SIZE
 from treeform.structures.mesh import Material, MeshPart
 from treeform.structures.skeleton import TreeSkeleton
 
@@ -34,7 +35,7 @@ _EPS = 1e-12
 
 
 # --------------------------------------------------------------------------- texture
-def bark_texture(size: int = 256, *, seed=0) -> np.ndarray:
+def bark_texture(size: int = BARK_TEXTURE_SIZE, *, seed=0) -> np.ndarray:
     """A procedural, tileable bark texture: brown-grey plates split by vertical fissures.
 
     The texture's vertical axis (rows) runs along the branch (UV ``v``), so the fissures
@@ -43,7 +44,8 @@ def bark_texture(size: int = 256, *, seed=0) -> np.ndarray:
     Parameters
     ----------
     size : int
-        Edge length in texels (>= 8).
+        Edge length in texels (>= 8); default 512
+        (:data:`~treeform.geometry.textures.BARK_TEXTURE_SIZE`).
     seed : int or numpy.random.Generator
         Randomness; same seed -> identical texture.
 
@@ -94,9 +96,9 @@ def _default_bark(size: int, seed: int) -> np.ndarray:
 
 
 def bark_material(texture=None) -> Material:
-    """The ``"bark"`` material: opaque, the procedural bark texture unless one is given."""
+    """The ``"bark"`` material: opaque, the procedural bark texture (512², seed 0) unless one is given."""
     if texture is None:
-        texture = _default_bark(256, 0).copy()
+        texture = _default_bark(BARK_TEXTURE_SIZE, 0).copy()
     else:
         texture = np.asarray(texture)
         if texture.ndim != 3 or texture.shape[2] != 4 or texture.dtype != np.uint8:
@@ -221,7 +223,7 @@ def branch_mesh(skeleton: TreeSkeleton, *, radial_segments: int = 8, min_radius:
     min_radius : float
         Chains whose own nodes are all thinner than this (metres) are skipped.
     bark_texture : ndarray, shape (H, W, 4), uint8, optional
-        Base-colour texture; default the procedural :func:`bark_texture` (256², seed 0).
+        Base-colour texture; default the procedural :func:`bark_texture` (512², seed 0).
     cap_starts : bool
         Also close the start of side chains with a fan (hidden inside the parent; makes every
         tube watertight on its own at the cost of ``S`` triangles per chain).

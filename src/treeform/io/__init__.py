@@ -11,6 +11,7 @@ from treeform.io.obj import write_obj
 from treeform.io.ply import read_skeleton_ply, write_skeleton_ply
 from treeform.io.outputs import check_out_dir, check_out_file, write_json, write_staged, write_tree_outputs
 from treeform.io.registry import known_extensions, register_writer, save
+from treeform.io.trees import read_tree
 
 __all__ = [
     "MAX_PIXELS",
@@ -23,6 +24,7 @@ __all__ = [
     "read_photo",
     "read_rgba",
     "read_skeleton_ply",
+    "read_tree",
     "register_writer",
     "save",
     "write_glb",

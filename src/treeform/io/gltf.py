@@ -22,7 +22,7 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.mesh import Material, Mesh, MeshPart
 
-__all__ = ["write_glb", "read_glb", "read_glb_counts", "accessor_array"]
+__all__ = ["write_glb", "read_glb", "read_glb_counts", "read_glb_textures", "accessor_array"]
 
 _GLB_MAGIC = 0x46546C67  # b"glTF"
 _CHUNK_JSON = 0x4E4F534A  # b"JSON"
@@ -308,6 +308,42 @@ def read_glb(path) -> tuple[dict, bytes]:
     return gltf, bin_chunk
 
 
+def read_glb_textures(path) -> dict:
+    """The base-colour textures of a GLB's materials, decoded.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    dict of str -> ndarray, shape (H, W, 4), uint8
+        Material name -> its ``baseColorTexture`` as RGBA (materials without one are left out;
+        embedded images only, as :func:`write_glb` writes them).
+
+    Raises
+    ------
+    InputError
+        Not a GLB, or a texture that is not an embedded, readable image.
+    """
+    from PIL import Image
+
+    gltf, bin_chunk = read_glb(path)
+    out = {}
+    try:
+        for i, m in enumerate(gltf.get("materials", [])):
+            ref = m.get("pbrMetallicRoughness", {}).get("baseColorTexture")
+            if ref is None:
+                continue
+            view = gltf["bufferViews"][gltf["images"][gltf["textures"][ref["index"]]["source"]]["bufferView"]]
+            start = view.get("byteOffset", 0)
+            with Image.open(io.BytesIO(bin_chunk[start:start + view["byteLength"]])) as im:
+                out[m.get("name", f"material_{i}")] = np.asarray(im.convert("RGBA"))
+    except (KeyError, IndexError, TypeError, OSError):
+        raise InputError(f"{path}: malformed or non-embedded glTF texture") from None
+    return out
+
+
 def read_glb_counts(path) -> tuple[int, int]:
     """Total vertex and triangle counts of a GLB's meshes (each primitive counted once).
 
@@ -364,3 +400,70 @@ def accessor_array(gltf: dict, bin_chunk: bytes, index: int) -> np.ndarray:
     start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
     arr = np.frombuffer(bin_chunk, dtype=dtype, count=acc["count"] * k, offset=start)
     return arr.reshape(-1, k) if k > 1 else arr
+
+
+def _node_matrix(node: dict):
+    """A glTF node's local 4x4 transform (``matrix``, or translation * rotation * scale)."""
+    if "matrix" in node:
+        return np.array(node["matrix"], np.float64).reshape(4, 4).T  # column-major in glTF
+    x, y, z, w = node.get("rotation", (0.0, 0.0, 0.0, 1.0))
+    rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                    [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                    [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    m = np.eye(4)
+    m[:3, :3] = rot * np.asarray(node.get("scale", (1.0, 1.0, 1.0)), np.float64)
+    m[:3, 3] = node.get("translation", (0.0, 0.0, 0.0))
+    return m
+
+
+def read_glb_geometry(path) -> tuple[np.ndarray, np.ndarray | None]:
+    """All vertex positions and the leaf triangles of a GLB, in world space.
+
+    Node transforms of the default scene are applied; leaf triangles are those of primitives
+    whose material is named ``leaves`` (treeform's leaf material).
+
+    Returns
+    -------
+    vertices : ndarray, shape (V, 3), float64
+    leaf_triangles : ndarray, shape (T, 3, 3), float64, or None
+        None when no primitive uses a ``leaves`` material.
+
+    Raises
+    ------
+    InputError
+        Not a GLB, a malformed scene or mesh, a node cycle, or no vertices.
+    """
+    gltf, bin_chunk = read_glb(path)
+    mats, nodes = gltf.get("materials", []), gltf.get("nodes", [])
+    verts, leaves = [], []
+    try:
+        scenes = gltf.get("scenes", [])
+        if scenes:
+            roots = list(scenes[gltf.get("scene", 0)].get("nodes", []))
+        else:
+            kids = {c for n in nodes for c in n.get("children", [])}
+            roots = [i for i in range(len(nodes)) if i not in kids]
+        stack = [(i, np.eye(4), 0) for i in roots]
+        while stack:
+            i, parent_m, depth = stack.pop()
+            if depth > 64:
+                raise InputError(f"{path}: glTF node hierarchy too deep (a cycle?)")
+            node = nodes[i]
+            m = parent_m @ _node_matrix(node)
+            stack.extend((c, m, depth + 1) for c in node.get("children", []))
+            if "mesh" not in node:
+                continue
+            for prim in gltf["meshes"][node["mesh"]]["primitives"]:
+                pos = accessor_array(gltf, bin_chunk, prim["attributes"]["POSITION"]).astype(np.float64)
+                pos = pos @ m[:3, :3].T + m[:3, 3]
+                verts.append(pos)
+                mat = mats[prim["material"]].get("name", "") if "material" in prim else ""
+                if mat == "leaves" and prim.get("mode", 4) == 4:
+                    idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64)
+                           if "indices" in prim else np.arange(len(pos)))
+                    leaves.append(pos[idx.reshape(-1, 3)])
+    except (KeyError, IndexError, TypeError, ValueError):
+        raise InputError(f"{path}: malformed glTF scene or mesh data") from None
+    if not verts or not sum(len(v) for v in verts):
+        raise InputError(f"{path}: the GLB holds no mesh vertices")
+    return np.concatenate(verts), (np.concatenate(leaves) if leaves else None)

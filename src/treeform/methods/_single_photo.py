@@ -3,7 +3,7 @@
 - :func:`load_photo` — a path / array / Photo reduced to a working size, and an optional user mask;
 - :func:`segment_or_mask` — the automatic segmentation, or the user's mask labelled;
 - :func:`photo_camera` — the camera that took the photo, in a world where the trunk base is the origin;
-- :func:`side_top_cameras` — the preview's side and top views.
+- :func:`render_previews` — front, side and top renders framed on the tree (also ``treeform grow``'s).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform.structures import Camera, Photo
 
-__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "side_top_cameras"]
+__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "render_previews"]
 
 
 def as_photo(photo, max_size: int) -> Photo:
@@ -87,10 +87,41 @@ def segment_or_mask(image: np.ndarray, user_mask, *, segmenter: str, seed: int):
     return segment(image, method=segmenter, seed=seed)
 
 
-def side_top_cameras(cam: Camera, tree_height: float, size: int) -> dict:
-    """Side and top cameras at the front camera's distance, centred on the tree axis."""
-    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
-    mid = (0.0, tree_height / 2, 0.0)
-    side = Camera(cam.width, cam.height, cam.fov_y, (dist, mid[1], 0.0), mid, (0, 1, 0), cam.near, cam.far)
-    top = Camera(cam.width, cam.height, cam.fov_y, (0.0, mid[1] + dist, 0.0), mid, (0, 0, -1), cam.near, cam.far)
-    return {"side": side, "top": top}
+def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: float = 35.0,
+                    size: int = 512) -> dict:
+    """Front, side and top renders of ``mesh``, every view framed on the whole tree.
+
+    The cameras are :func:`treeform.report.preview_cameras` of the mesh's vertices: with
+    ``front`` (the photo's camera) the front view keeps that camera and only widens its
+    image, so :func:`treeform.report.photo_window` cuts the photo's view back out of it;
+    the side view shares the front's scale; the top view looks down on the whole crown.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    front : Camera, optional
+        The photo's camera; without it the front camera is fitted (``fov_y``, ``size``
+        pixels high).
+    lighting : Lighting, optional
+    fov_y, size
+        Field of view (degrees) and image height of a fitted front camera.
+
+    Returns
+    -------
+    dict
+        ``{"front", "side", "top"} -> RenderResult`` (each with its ``camera``).
+    """
+    from treeform.render import Renderer
+    from treeform.report import preview_cameras
+
+    pts = [part.positions for part in mesh.parts if part.n_vertices]
+    cams = preview_cameras(np.concatenate(pts) if pts else np.zeros((1, 3)), front=front, fov_y=fov_y, size=size)
+    renderer = Renderer(cams["front"], lighting=lighting)
+    renders = {}
+    try:
+        for name, view in cams.items():
+            renderer.camera = view
+            renders[name] = renderer.render(mesh)
+    finally:
+        renderer.release()
+    return renders

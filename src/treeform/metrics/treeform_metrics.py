@@ -25,6 +25,7 @@ __all__ = [
     "average_branching_angle",
     "branching_angles",
     "biomass",
+    "crown_extents",
     "leaf_area_index",
     "leaf_area_index_triangles",
     "max_radial_trunk_distance",
@@ -302,6 +303,59 @@ def max_radial_trunk_distance(skeleton: TreeSkeleton, *, layers: int = 5) -> np.
     return out
 
 
+# --------------------------------------------------------------------------- crown extents
+def crown_extents(points) -> dict:
+    """The crown's horizontal extents and width, metres: the one definition treeform reports.
+
+    The crown's *extents* are its spread along X and along Z, from the outermost point on
+    one side to the outermost on the other (``max - min``, no trimming: the drip line). The
+    *crown width* is their mean, the forestry convention of averaging two perpendicular
+    crown diameters. The *maximum radial extent* is the largest horizontal distance of a
+    point from the trunk axis: the vertical line through a skeleton's base node, or through
+    the origin (treeform's tree base) for a point array.
+
+    ``treeform grow``'s summary and metrics.json, the reconstructions' metrics.json and
+    ``treeform metrics`` all report these numbers, measured on the branch skeleton's
+    nodes (``skeleton.positions``), so every file of one tree gives the same figures; for a
+    bare mesh (:func:`mesh_metrics`) they are measured on its vertices.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), or TreeSkeleton
+        Points in metres, Y up, tree base at the origin (a skeleton: its nodes).
+
+    Returns
+    -------
+    dict
+        ``crown_extent_x_m``, ``crown_extent_z_m``, ``crown_width_m``, ``max_radial_extent_m``
+        (floats; all 0 for a single point).
+
+    Raises
+    ------
+    InputError
+        ``points`` is empty, not (N, 3), or holds NaN or infinite values.
+
+    Examples
+    --------
+    >>> m = crown_extents(np.array([[0, 0, 0], [-1, 5, 0], [3, 6, 1], [0, 7, -3.]]))
+    >>> m["crown_extent_x_m"], m["crown_extent_z_m"], m["crown_width_m"]
+    (4.0, 4.0, 4.0)
+    """
+    p = points.positions if isinstance(points, TreeSkeleton) else np.asarray(points, np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
+        raise InputError(f"points: expected a non-empty (N, 3) array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise InputError("points: contains NaN or infinite values")
+    ex, ez = float(np.ptp(p[:, 0])), float(np.ptp(p[:, 2]))
+    axis = p[0] if isinstance(points, TreeSkeleton) else np.zeros(3)
+    return {
+        "crown_extent_x_m": ex,
+        "crown_extent_z_m": ez,
+        "crown_width_m": 0.5 * (ex + ez),
+        "max_radial_extent_m": float(np.hypot(p[:, 0] - axis[0], p[:, 2] - axis[2]).max()),
+    }
+
+
 # --------------------------------------------------------------------------- leaf area index
 def _check_foliage(foliage) -> Foliage:
     if not isinstance(foliage, Foliage):
@@ -567,6 +621,12 @@ def _lai_of(foliage, skeleton, **kw) -> dict:
 
 
 # --------------------------------------------------------------------------- summaries
+def _recorded_leaves(s: TreeSkeleton):
+    """The leaf count a pipeline recorded in ``skeleton.meta["n_leaves"]`` (None if absent)."""
+    n = s.meta.get("n_leaves") if isinstance(s.meta, dict) else None
+    return int(n) if isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 0 else None
+
+
 def tree_metrics(skeleton: TreeSkeleton, foliage: Foliage | None = None, *, leaf_triangles=None,
                  layers: int = 5, lai_cell=None) -> dict:
     """Every tree-form metric of seed 003 §6 (and a few extents), JSON-ready.
@@ -590,8 +650,10 @@ def tree_metrics(skeleton: TreeSkeleton, foliage: Foliage | None = None, *, leaf
         ``branching_angle_deg``, ``tree_height_m``, ``trunk_diameter_m``, ``leaf_area_index``
         (NaN without leaves given), ``biomass_m3``, ``mrt_m`` (list of ``layers`` floats,
         bottom to top), ``projected_leaf_area_m2``, ``crown_projection_area_m2``,
-        ``crown_extent_x_m``, ``crown_extent_z_m``, ``max_radial_extent_m``, ``n_nodes``,
-        ``n_branching_points``, ``n_leaves`` (None without foliage).
+        ``crown_extent_x_m``, ``crown_extent_z_m``, ``crown_width_m``, ``max_radial_extent_m``
+        (:func:`crown_extents` of the skeleton's nodes), ``n_nodes``, ``n_branching_points``,
+        ``n_leaves`` (the foliage's count; without foliage the count the pipeline that made
+        the skeleton recorded in ``skeleton.meta["n_leaves"]``; None when neither exists).
     """
     s = _check_skeleton(skeleton)
     angles, nodes = branching_angles(s)
@@ -600,12 +662,11 @@ def tree_metrics(skeleton: TreeSkeleton, foliage: Foliage | None = None, *, leaf
         n_leaves = len(foliage)
     elif leaf_triangles is not None:
         lai = _lai(leaf_triangles, s.positions[:, [0, 2]], footprint="hull", cell=lai_cell, coverage=1.0)
-        n_leaves = None
+        n_leaves = _recorded_leaves(s)
     else:
         lai = {"leaf_area_index": float("nan"), "projected_leaf_area_m2": float("nan"),
                "crown_projection_area_m2": float("nan")}
-        n_leaves = None
-    local = s.positions - s.positions[0]
+        n_leaves = _recorded_leaves(s)
     return {
         "branching_angle_deg": average_branching_angle(s),
         "tree_height_m": tree_height(s, foliage=foliage),
@@ -615,9 +676,7 @@ def tree_metrics(skeleton: TreeSkeleton, foliage: Foliage | None = None, *, leaf
         "mrt_m": max_radial_trunk_distance(s, layers=layers).tolist(),
         "projected_leaf_area_m2": lai["projected_leaf_area_m2"],
         "crown_projection_area_m2": lai["crown_projection_area_m2"],
-        "crown_extent_x_m": float(np.ptp(s.positions[:, 0])),
-        "crown_extent_z_m": float(np.ptp(s.positions[:, 2])),
-        "max_radial_extent_m": float(np.hypot(local[:, 0], local[:, 2]).max()),
+        **crown_extents(s),
         "n_nodes": int(s.n_nodes),
         "n_branching_points": int(len(np.unique(nodes))),
         "n_leaves": n_leaves,
@@ -684,7 +743,8 @@ def mesh_metrics(positions, *, leaf_triangles=None) -> dict:
     -------
     dict
         ``tree_height_m`` (max y - min y), ``crown_extent_x_m``, ``crown_extent_y_m``,
-        ``crown_extent_z_m`` (bounding box sides), ``max_radial_extent_m`` (largest distance
+        ``crown_extent_z_m`` (bounding box sides), ``crown_width_m`` (mean of the X and Z
+        extents, :func:`crown_extents`), ``max_radial_extent_m`` (largest distance
         from the Y axis), ``leaf_area_index``, ``projected_leaf_area_m2``,
         ``crown_projection_area_m2`` (NaN without leaf triangles), ``n_vertices``.
     """
@@ -694,16 +754,18 @@ def mesh_metrics(positions, *, leaf_triangles=None) -> dict:
     if not np.all(np.isfinite(p)):
         raise InputError("positions: contains NaN or infinite values")
     ext = np.ptp(p, axis=0)
+    crown = crown_extents(p)
     nan = float("nan")
     lai = {"leaf_area_index": nan, "projected_leaf_area_m2": nan, "crown_projection_area_m2": nan}
     if leaf_triangles is not None:
         lai = _lai(leaf_triangles, p[:, [0, 2]], footprint="hull", cell=None, coverage=1.0)
     return {
         "tree_height_m": float(ext[1]),
-        "crown_extent_x_m": float(ext[0]),
+        "crown_extent_x_m": crown["crown_extent_x_m"],
         "crown_extent_y_m": float(ext[1]),
-        "crown_extent_z_m": float(ext[2]),
-        "max_radial_extent_m": float(np.hypot(p[:, 0], p[:, 2]).max()),
+        "crown_extent_z_m": crown["crown_extent_z_m"],
+        "crown_width_m": crown["crown_width_m"],
+        "max_radial_extent_m": crown["max_radial_extent_m"],
         "leaf_area_index": lai["leaf_area_index"],
         "projected_leaf_area_m2": lai["projected_leaf_area_m2"],
         "crown_projection_area_m2": lai["crown_projection_area_m2"],

@@ -8,11 +8,19 @@ matting (Levin, Lischinski & Weiss 2008) from PyMatting, with PyMatting's multil
 foreground estimation (Germer et al. 2021) so that edge pixels carry the tree's colour, not
 the sky's.
 
-PyMatting (and numba, which compiles its kernels on first use, about 50 s once, then
-cached) is imported only inside :func:`alpha_matting` and :func:`estimate_foreground`.
+PyMatting is imported only inside :func:`alpha_matting` and :func:`estimate_foreground`.
+Its import compiles its numba kernels (eager signatures, ``cache=True``) unless numba's
+on-disk cache holds them: about 50 s once per installation (or per ``NUMBA_CACHE_DIR``),
+then about 0.5 s. :func:`kernels_to_compile` tells beforehand whether that will happen, and
+the import logs an INFO notice on the ``treeform.segment.matting`` logger when it will
+(the command line shows it; a library caller sees it only with logging configured).
 """
 
 from __future__ import annotations
+
+import logging
+import os
+import sys
 
 import cv2
 import numpy as np
@@ -21,9 +29,129 @@ from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps"]
+__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps", "kernels_to_compile"]
 
 UNKNOWN = 0.5
+
+log = logging.getLogger(__name__)
+
+COMPILE_SECONDS = 50
+"""Rough time numba takes to compile all of PyMatting's kernels (measured: 47 s on 2 cores)."""
+
+
+def _numba_kernels(root: str):
+    """``(source file, qualname, first line)`` of every ``cache=True`` numba function under ``root``.
+
+    Found by parsing the sources (importing them would compile them). ``first line`` is the
+    function's first decorator line, which numba uses (``co_firstlineno``) in its cache names.
+    """
+    import ast
+
+    def walk(node, path, prefix):
+        for ch in ast.iter_child_nodes(node):
+            if isinstance(ch, ast.FunctionDef):
+                name = prefix + ch.name
+                if any(isinstance(d, ast.Call) and any(k.arg == "cache" and isinstance(k.value, ast.Constant)
+                                                       and k.value.value is True for k in d.keywords)
+                       for d in ch.decorator_list):
+                    yield path, name, ch.decorator_list[0].lineno
+                yield from walk(ch, path, name + ".<locals>.")
+            elif isinstance(ch, ast.ClassDef):
+                yield from walk(ch, path, prefix + ch.name + ".")
+
+    for folder, dirs, files in os.walk(root):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for f in sorted(files):
+            if f.endswith(".py"):
+                path = os.path.join(folder, f)
+                with open(path, encoding="utf-8") as fh:
+                    src = fh.read()
+                if "cache=True" in src:
+                    yield from walk(ast.parse(src, path), path, "")
+
+
+def _cached(path: str, qualname: str, line: int, magic) -> bool:
+    """Does numba's cache hold a fresh compiled entry of this function for this machine?
+
+    Uses numba's own locators (``NUMBA_CACHE_DIR``, the package's ``__pycache__``, the user
+    cache), cache file names and index format, on a stand-in function with the same file,
+    line and qualified name.
+    """
+    from numba.core.caching import CompileResultCacheImpl, IndexDataCacheFile
+
+    ns: dict = {}
+    exec(compile("\n" * (line - 1) + "def _f():\n    pass\n", path, "exec"), ns)
+    func = ns["_f"]
+    func.__qualname__, func.__name__ = qualname, qualname.rsplit(".", 1)[-1]
+    try:
+        impl = CompileResultCacheImpl(func)
+    except RuntimeError:  # no writable cache location: numba cannot cache it (it compiles every run)
+        return False
+    loc = impl.locator
+    index = IndexDataCacheFile(loc.get_cache_path(), impl.filename_base, loc.get_source_stamp())
+    return any(key[1] == magic and os.path.exists(os.path.join(loc.get_cache_path(), name))
+               for key, name in index._load_index().items())
+
+
+def _marker_path():
+    """``$XDG_CACHE_HOME/treeform/`` (default ``~/.cache/treeform/``) marker of a finished warm-up."""
+    from importlib.metadata import version
+    from pathlib import Path
+
+    home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    tag = f"pymatting-{version('pymatting')}-numba-{version('numba')}-py{sys.version_info[0]}{sys.version_info[1]}"
+    return Path(home) / "treeform" / f"matting-kernels-{tag}.ok"
+
+
+def kernels_to_compile() -> tuple[int, int]:
+    """How many of PyMatting's numba kernels importing it will compile now: ``(to compile, all)``.
+
+    ``(0, n)`` once numba's on-disk cache holds them all (or PyMatting is already imported).
+    Should numba's cache layout be unreadable to this check, it falls back to a marker file
+    that :func:`alpha_matting` writes after the first import (``(1, 1)`` until then).
+    """
+    if "pymatting" in sys.modules:
+        return 0, 0
+    try:
+        from importlib.util import find_spec
+
+        from numba.core import config
+        from numba.core.registry import cpu_target
+
+        if config.DISABLE_JIT:
+            return 0, 0
+        kernels = list(_numba_kernels(os.path.dirname(find_spec("pymatting").origin)))
+        if not kernels:
+            raise LookupError("no cache=True kernels found in the PyMatting sources")
+        magic = cpu_target.target_context.codegen().magic_tuple()
+        cold = sum(not _cached(path, name, line, magic) for path, name, line in kernels)
+        return cold, len(kernels)
+    except Exception:  # numba or PyMatting internals changed: fall back to our own marker
+        try:
+            return (0, 1) if _marker_path().exists() else (1, 1)
+        except Exception:
+            return 0, 0
+
+
+def _import_pymatting():
+    """Import PyMatting, first logging a notice when numba is about to compile its kernels."""
+    if "pymatting" in sys.modules:
+        return sys.modules["pymatting"]
+    cold, total = kernels_to_compile()
+    if cold:
+        est = max(5, 5 * round(COMPILE_SECONDS * cold / total / 5))
+        what = "the matting kernels" if cold == total else f"{cold} of {total} matting kernels"
+        log.info("first run: compiling %s with numba, once (~%d s); later runs load them from the cache", what, est)
+    import pymatting
+
+    try:  # the fallback marker of kernels_to_compile; an unwritable cache folder is no error
+        marker = _marker_path()
+        if not marker.exists():
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.touch()
+    except Exception:
+        pass
+    return pymatting
 
 
 def _disc(r: int) -> np.ndarray:
@@ -186,7 +314,7 @@ def alpha_matting(image, trimap, *, max_side: int = 800) -> np.ndarray:
         raise InputError("trimap: needs both foreground (1) and background (0) pixels")
     if isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 16:
         raise InputError(f"max_side: expected an integer >= 16, got {max_side!r}")
-    from pymatting import estimate_alpha_cf
+    estimate_alpha_cf = _import_pymatting().estimate_alpha_cf
 
     h, w = tri.shape
     s = min(1.0, max_side / max(h, w))
@@ -220,7 +348,7 @@ def estimate_foreground(image, alpha) -> np.ndarray:
     a = np.asarray(alpha, np.float64)
     if a.shape != img.shape[:2]:
         raise InputError(f"alpha: shape {a.shape} does not match the image's {img.shape[:2]}")
-    from pymatting import estimate_foreground_ml
+    estimate_foreground_ml = _import_pymatting().estimate_foreground_ml
 
     fg = estimate_foreground_ml(img.astype(np.float64) / 255.0, np.clip(a, 0.0, 1.0))
     return np.clip(fg, 0.0, 1.0).astype(np.float32)

@@ -8,7 +8,8 @@ Each species is a JSON file beside this module that users can copy and edit::
       "base": "oak",                        # optional: start from this preset, override below
       "parameters": {"growth_rate": 3.0, ...},   # GrowthParameters fields
       "reference_height": 17.0,             # optional: metres of a typical grown tree (RBV scale, 003 §4.4)
-      "appearance": {"leaf_color": [r, g, b], "leaf_size": 0.5}   # optional
+      "appearance": {"leaf_color": [r, g, b], "leaf_size": 0.5,   # optional
+                     "leaf_type": "broadleaf"}   # or "needles", "scales" (the leaf texture)
     }
 
 Without ``base`` every parameter must be given. :func:`load_species` accepts a preset name
@@ -44,10 +45,14 @@ class SpeciesAppearance:
         Mean RGB of the leaves.
     leaf_size : float
         Edge length in metres of one leaf-cluster card.
+    leaf_type : {"broadleaf", "needles", "scales"}
+        What a card shows: a broadleaf cluster, a needle cluster (pines), a scale spray
+        (thuja, juniper); see :func:`treeform.geometry.tree_textures`.
     """
 
     leaf_color: tuple = (0.22, 0.4, 0.13)
     leaf_size: float = 0.45
+    leaf_type: str = "broadleaf"
 
 
 def species_path(name: str) -> Path:
@@ -125,15 +130,16 @@ def load_species(name_or_path) -> GrowthParameters:
 
 
 def load_species_appearance(name_or_path) -> SpeciesAppearance:
-    """The leaf colour and size of a preset or species file (defaults where it gives none)."""
+    """The leaf colour, size and type of a preset or species file (defaults where it gives none)."""
     data = _read(name_or_path)
     look = data.get("appearance")
     if look is None and data.get("base") is not None:
         return load_species_appearance(data["base"])
     look = look or {}
-    if not isinstance(look, dict) or set(look) - {"leaf_color", "leaf_size"}:
-        raise InputError(f"species {data['_path'].name}: 'appearance' takes only leaf_color and leaf_size")
-    default = SpeciesAppearance()
+    if not isinstance(look, dict) or set(look) - {"leaf_color", "leaf_size", "leaf_type"}:
+        raise InputError(f"species {data['_path'].name}: 'appearance' takes only leaf_color, leaf_size and leaf_type")
+    # keys it leaves out come from its base preset, if any (a pine variant keeps its needles)
+    default = load_species_appearance(data["base"]) if data.get("base") is not None else SpeciesAppearance()
     color = look.get("leaf_color", default.leaf_color)
     size = look.get("leaf_size", default.leaf_size)
     try:
@@ -145,7 +151,11 @@ def load_species_appearance(name_or_path) -> SpeciesAppearance:
         raise InputError(f"species {data['_path'].name}: leaf_color must be 3 numbers in [0, 1], got {color}")
     if not size > 0:
         raise InputError(f"species {data['_path'].name}: leaf_size must be positive, got {size}")
-    return SpeciesAppearance(color, size)
+    leaf_type = look.get("leaf_type", default.leaf_type)
+    if leaf_type not in ("broadleaf", "needles", "scales"):
+        raise InputError(f"species {data['_path'].name}: leaf_type must be broadleaf, needles or scales, "
+                         f"got {leaf_type!r}")
+    return SpeciesAppearance(color, size, leaf_type)
 
 
 def load_reference_height(name_or_path) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.checks import check_choice, check_int, check_positive
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -64,6 +64,12 @@ class EnvelopeConfig:
     """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
     radial_segments: int = 8
     """Sides of the branch tubes before any LOD reduction."""
+    foliage: str = "auto"
+    """What the leaf cards show: 'broadleaf' clusters, pine-like 'needles', thuja-like 'scales';
+    'auto': needles for a conical crown, else broadleaf."""
+    texture_size: int | None = None
+    """Bark texture edge N in texels (leaves get N/2); None: from the tree's size (at least 512,
+    leaves 256; see :func:`treeform.geometry.texture_sizes`)."""
     render_size: int = 512
     """Height in pixels of the side and top preview renders."""
 
@@ -71,6 +77,9 @@ class EnvelopeConfig:
         check_choice(self.crown, "crown", ("round", "conical"))
         check_choice(self.lod, "lod", ("low", "medium", "high", "full"))
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
+        check_choice(self.foliage, "foliage", ("auto", "broadleaf", "needles", "scales"))
+        if self.texture_size is not None:
+            check_int(self.texture_size, "texture_size", 16, 8192)
         if self.tangent_k is not None:
             check_positive(self.tangent_k, "tangent_k")
         for name in ("tree_height", "depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent",
@@ -88,6 +97,12 @@ class EnvelopeConfig:
         if not 5 <= self.fov_y <= 120:
             raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
         return self
+
+    def foliage_kind(self) -> str:
+        """The foliage kind the leaf cards show ('auto' resolved by the crown shape)."""
+        if self.foliage != "auto":
+            return self.foliage
+        return "needles" if self.crown == "conical" else "broadleaf"
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -17,7 +17,7 @@ from treeform import __version__
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, write_json
-from treeform.methods._single_photo import load_photo, photo_camera, segment_or_mask, side_top_cameras
+from treeform.methods._single_photo import load_photo, photo_camera, render_previews, segment_or_mask
 from treeform.methods.envelope.config import EnvelopeConfig
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
 
@@ -173,8 +173,12 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         area = leaf_mask.sum() * mpp * mpp
         n_shell = int(round(cfg.shell_leaves * cfg.leaves))
         # card size so the column-sampled leaves alone cover each crown pixel leaf_coverage times
-        # on average (a card's texture covers ~0.65 of it, at a mean tilt of ~0.5 toward the camera)
-        size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves - n_shell, 1) / 0.33) if cfg.leaves else 0.1
+        # on average (a card's texture covers ~0.65 of it, at a mean tilt of ~0.5 toward the camera;
+        # needle and scale textures cover less, so their cards are larger)
+        from treeform.geometry import CLUSTER_COVERAGE, foliage_coverage
+
+        texture_cover = 0.33 * foliage_coverage(cfg.foliage_kind(), seed=cfg.seed) / CLUSTER_COVERAGE
+        size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves - n_shell, 1) / texture_cover) if cfg.leaves else 0.1
         # card centres stay a third of a card inside the silhouette so cards do not overhang it
         inset = int(round(size / mpp / 3))
         core = ndi.binary_erosion(leaf_mask, iterations=inset, border_value=1) if inset > 0 else leaf_mask
@@ -188,6 +192,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         suv = cam.project(shell_pts)
         uvz = np.concatenate([uvz, np.column_stack([suv[:, :2], (dist - suv[:, 2]) / mpp])])
         foliage = attach_leaves(skeleton, pts, size=size, center=center, seed=rng)
+        skeleton.meta["n_leaves"] = len(foliage)  # so `treeform metrics` on the files reports the count
         if len(foliage):
             fu = np.clip(uvz[:, 0].astype(np.int64), 0, width - 1)
             fv = np.clip(uvz[:, 1].astype(np.int64), 0, height - 1)
@@ -197,10 +202,12 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
             foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
     with timer.stage("mesh"):
-        from treeform.geometry import LOD_PRESETS, leaf_texture, tree_mesh
+        from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
 
+        bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=cfg.foliage_kind(),
+                                           texture_size=cfg.texture_size, seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
-                         radial_segments=cfg.radial_segments, leaf_texture=leaf_texture(seed=cfg.seed),
+                         radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
                          seed=cfg.seed)
         wood = seg.wood_mask
         if wood.sum() > 20:
@@ -212,20 +219,21 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                     part.material.base_color = (float(min(f[0], 1)), float(min(f[1], 1)), float(min(f[2], 1)), 1.0)
     with timer.stage("render"):
         from treeform.metrics import extent_ratio, iou, reprojection_error
-        from treeform.render import Lighting, Renderer, to_uint8_rgb
-        from treeform.report import compose_strip, segmentation_overlay
+        from treeform.metrics.treeform_metrics import crown_extents, tree_height
+        from treeform.render import Lighting
+        from treeform.report import photo_window, preview_strip
 
         # soft, camera-relative light so the front view shows the albedo the photo gave the leaves
         light = Lighting(direction=(-0.4, 0.6, 0.7), key=(0.45, 0.45, 0.42), sky=(0.8, 0.8, 0.82),
                          ground=(0.55, 0.54, 0.5), camera_relative=True)
-        renders = {"front": Renderer(cam, lighting=light).render(mesh)}
-        for name, vc in side_top_cameras(cam, cfg.tree_height, cfg.render_size).items():
-            renders[name] = Renderer(vc, lighting=light).render(mesh)
-        front_mask = renders["front"].mask
+        # the front view is the photo's camera, widened to show the whole tree; side shares its scale
+        renders = render_previews(mesh, front=cam, lighting=light)
+        window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
+        front_mask = renders["front"].mask[window]
         metrics = {
             "reprojection_error": reprojection_error(front_mask, seg.tree_mask),
             "iou": iou(front_mask, seg.tree_mask),
-            "depth_width_ratio": extent_ratio(renders["side"].mask, front_mask),
+            "depth_width_ratio": extent_ratio(renders["side"].mask, renders["front"].mask),
             "nodes": skeleton.n_nodes,
             "tips": int(len(skeleton.tips())),
             "leaves": len(foliage),
@@ -235,9 +243,10 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             "triangles": mesh.n_triangles,
             "photo_size": [width, height],
             "metres_per_pixel": mpp,
+            "tree_height_m": tree_height(skeleton),
+            **crown_extents(skeleton),
         }
-        preview = compose_strip([image, segmentation_overlay(image, seg)]
-                                + [to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+        preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
     result = Reconstruction(ph, seg, cam, world_verts, env.faces, rdm, skeleton, foliage, mesh, metrics, cfg,
                             renders, preview)
     if out_dir is not None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numbers
 from dataclasses import asdict, dataclass, field
 
-from treeform._shared.checks import check_choice, check_positive
+from treeform._shared.checks import check_choice, check_int, check_positive
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -17,12 +17,15 @@ def _lod_names() -> tuple:
 
 
 def _check_common(cfg) -> None:
-    """Checks shared by the learned method's configs: seed, lod, fov_y, leaves, integer ranges."""
+    """Checks shared by the learned method's configs: seed, lod, fov_y, foliage, texture size, leaves."""
     if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, numbers.Integral):
         raise InputError(f"seed: expected an integer, got {cfg.seed!r}")
     check_choice(cfg.lod, "lod", _lod_names())
     if not 5 <= cfg.fov_y <= 120:
         raise InputError(f"fov_y: expected 5..120 degrees, got {cfg.fov_y}")
+    check_choice(cfg.foliage, "foliage", ("auto", "broadleaf", "needles", "scales"))
+    if cfg.texture_size is not None:
+        check_int(cfg.texture_size, "texture_size", 16, 8192)
     if cfg.leaves is not None and (isinstance(cfg.leaves, bool) or not isinstance(cfg.leaves, numbers.Integral)
                                    or not 0 <= cfg.leaves <= 2_000_000):
         raise InputError(f"leaves: expected an integer in [0, 2000000] or None, got {cfg.leaves!r}")
@@ -60,6 +63,12 @@ class GrowConfig:
     """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
     radial_segments: int = 8
     """Sides of the branch tubes before any LOD reduction."""
+    foliage: str = "auto"
+    """What the leaf cards show: 'broadleaf', 'needles' or 'scales'; 'auto': the species'
+    ``leaf_type`` (pine: needles)."""
+    texture_size: int | None = None
+    """Bark texture edge N in texels (leaves get N/2); None: from the tree's size (at least 512,
+    leaves 256; see :func:`treeform.geometry.texture_sizes`)."""
     render_size: int = 512
     """Edge in pixels of the square front, side and top preview renders."""
     fov_y: float = 35.0
@@ -121,6 +130,11 @@ class LearnedConfig:
     """Total number of leaf clusters; None: the species' leaves per twig."""
     lod: str = "medium"
     """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
+    foliage: str = "auto"
+    """What the leaf cards show: 'broadleaf', 'needles' or 'scales'; 'auto': the grown species'
+    ``leaf_type`` (pine: needles)."""
+    texture_size: int | None = None
+    """Bark texture edge N in texels (leaves get N/2); None: from the tree's size."""
     render_size: int = 512
     """Height in pixels of the side and top preview renders."""
 

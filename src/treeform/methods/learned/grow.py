@@ -9,7 +9,6 @@ atomically: a staging folder, then renames).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,13 +21,12 @@ from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, write_json, write_staged
 from treeform.methods.learned.config import GrowConfig
-from treeform.structures import Camera, Foliage, Mesh, TreeSkeleton
+from treeform.structures import Foliage, Mesh, TreeSkeleton
 
 if TYPE_CHECKING:  # pragma: no cover
     from treeform.growth.phenomenological import GrowthParameters
 
-__all__ = ["GrowResult", "OUTPUT_FILES", "STAGES", "frame_camera", "grow_tree", "shape_metrics", "preview_lighting",
-           "write_staged"]
+__all__ = ["GrowResult", "OUTPUT_FILES", "STAGES", "grow_tree", "shape_metrics", "preview_lighting", "write_staged"]
 
 STAGES = ("grow", "leaves", "mesh", "render", "export")
 """Stage names reported through ``progress(stage, event, seconds)``, in order."""
@@ -61,73 +59,53 @@ class GrowResult:
 def shape_metrics(skeleton: TreeSkeleton) -> dict:
     """Tree-form numbers of a skeleton (metres; Y up).
 
+    Height and crown extents are :mod:`treeform.metrics`' own (the same numbers
+    ``treeform metrics`` reports for the tree's skeleton.json or GLB); the shape ratios use a
+    spread that a lone long branch does not move.
+
     Returns
     -------
     dict
-        ``height`` (highest node), ``crown_width`` (mean of the 2–98 % extents of the nodes
-        along X and Z), ``crown_base`` (5th percentile of the tips' heights),
+        ``height`` (:func:`~treeform.metrics.tree_height`: highest node above the base),
+        ``crown_extent_x``, ``crown_extent_z`` and ``crown_width`` (their mean), from
+        :func:`~treeform.metrics.treeform_metrics.crown_extents` of the nodes;
+        ``crown_spread`` (mean of the 2–98 % percentile spreads of the nodes along X and Z,
+        robust to outliers), ``crown_base`` (5th percentile of the tips' heights),
         ``crown_height`` (``height - crown_base``), ``crown_flatness`` (crown height / crown
-        width), ``slenderness`` (height / crown width) and ``tip_direction_y`` (mean Y of the
+        spread), ``slenderness`` (height / crown spread) and ``tip_direction_y`` (mean Y of the
         unit directions of the terminal segments: < 0 means twigs point below horizontal).
 
     Examples
     --------
     >>> sk = TreeSkeleton(np.array([[0, 0, 0], [0, 2, 0], [1, 2, 0.], [-1, 2, 0]]), np.array([-1, 0, 1, 1]))
     >>> m = shape_metrics(sk)
-    >>> m["height"], m["tip_direction_y"]
-    (2.0, 0.0)
+    >>> m["height"], m["crown_width"], m["tip_direction_y"]
+    (2.0, 1.0, 0.0)
     """
+    from treeform.metrics.treeform_metrics import crown_extents, tree_height
+
     p = skeleton.positions
     tips = skeleton.tips()
-    height = float(p[:, 1].max())
+    height = tree_height(skeleton)
+    crown = crown_extents(skeleton)
     ext = [np.percentile(p[:, k], 98) - np.percentile(p[:, k], 2) for k in (0, 2)]
-    width = float(max(np.mean(ext), 1e-6))
+    spread = float(max(np.mean(ext), 1e-6))
     tip_y = p[tips, 1]
     base = float(np.percentile(tip_y, 5)) if len(tips) else 0.0
     d = p[tips] - p[skeleton.parent[tips].clip(0)]
     d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
     return {
         "height": round(height, 4),
-        "crown_width": round(width, 4),
+        "crown_extent_x": round(crown["crown_extent_x_m"], 4),
+        "crown_extent_z": round(crown["crown_extent_z_m"], 4),
+        "crown_width": round(crown["crown_width_m"], 4),
+        "crown_spread": round(spread, 4),
         "crown_base": round(base, 4),
         "crown_height": round(height - base, 4),
-        "crown_flatness": round((height - base) / width, 4),
-        "slenderness": round(height / width, 4),
+        "crown_flatness": round((height - base) / spread, 4),
+        "slenderness": round(height / spread, 4),
         "tip_direction_y": round(float(d[:, 1].mean()) if len(tips) else 0.0, 4),
     }
-
-
-def frame_camera(lo, hi, *, size: int, fov_y: float, margin: float = 1.06) -> Camera:
-    """A front camera (on +Z, looking at -Z) that frames the box ``lo``–``hi``.
-
-    It looks at the box centre from far enough that the box's largest extent fits the view
-    from the front, and — since :func:`treeform.render.view_camera` keeps the distance —
-    from the side and from the top as well.
-
-    Parameters
-    ----------
-    lo, hi : array_like, shape (3,)
-        Box corners in metres.
-    size : int
-        Image width and height in pixels.
-    fov_y : float
-        Field of view in degrees.
-    margin : float
-        Extra room around the box (1 = touching the image border).
-
-    Returns
-    -------
-    Camera
-    """
-    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-    center = 0.5 * (lo + hi)
-    ext = np.maximum(hi - lo, 1e-3)
-    half = 0.5 * margin * float(ext.max())
-    depth = 0.5 * float(max(ext[0], ext[2]))
-    dist = half / math.tan(math.radians(fov_y) / 2) + depth
-    reach = float(np.linalg.norm(ext))
-    return Camera(size, size, fov_y, tuple(center + [0.0, 0.0, dist]), tuple(center), (0.0, 1.0, 0.0),
-                  near=max(dist - reach, 0.01), far=dist + reach)
 
 
 def preview_lighting():
@@ -245,22 +223,24 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         foliage = twig_foliage(skeleton, leaf_color=look.leaf_color, size=cfg.leaf_size or look.leaf_size,
                                leaves=cfg.leaves, leaves_per_twig=cfg.leaves_per_twig, twig_tips=cfg.twig_tips,
                                seed=rng)
+        skeleton.meta["n_leaves"] = len(foliage)  # so `treeform metrics` on the files reports the count
     with timer.stage("mesh"):
-        from treeform.geometry import LOD_PRESETS, leaf_texture, tree_mesh
+        from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
 
+        kind = look.leaf_type if cfg.foliage == "auto" else cfg.foliage
+        bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=kind, texture_size=cfg.texture_size,
+                                           seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
-                         leaf_texture=leaf_texture(seed=cfg.seed), seed=cfg.seed)
+                         leaf_texture=leaf_tex, bark_texture=bark_tex, seed=cfg.seed)
     renders, preview = {}, None
     if previews:
         with timer.stage("render"):
-            from treeform.render import render_views, to_uint8_rgb
-            from treeform.report import compose_strip
+            from treeform.methods._single_photo import render_previews
+            from treeform.report import preview_strip
 
-            pts_all = np.concatenate([skeleton.positions, foliage.positions]) if len(foliage) else skeleton.positions
-            pad = ((cfg.leaf_size or look.leaf_size) if len(foliage) else 0.0) + float(skeleton.radius.max())
-            cam = frame_camera(pts_all.min(0) - pad, pts_all.max(0) + pad, size=cfg.render_size, fov_y=cfg.fov_y)
-            renders = render_views(mesh, cam, views=("front", "side", "top"), lighting=preview_lighting())
-            preview = compose_strip([to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+            # every view framed on the whole tree (render_size pixels high); side at the front's scale
+            renders = render_previews(mesh, lighting=preview_lighting(), fov_y=cfg.fov_y, size=cfg.render_size)
+            preview = preview_strip(renders)
     metrics = {
         "species": skeleton.meta["species"],
         "seed": cfg.seed,

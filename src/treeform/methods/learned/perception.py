@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from treeform._shared.timing import StageTimer
 
 __all__ = ["SEGMENT_STAGES", "SPECIES_STAGES", "SegmentResult", "classify_species", "segment_photo"]
@@ -33,8 +35,8 @@ class SegmentResult:
         return {"foliage": float((lab == 1).mean()), "wood": float((lab == 2).mean())}
 
 
-def segment_photo(photo, *, out=None, overlay=None, segmenter: str = "classical", seed: int = 0,
-                  max_size: int = 4096, progress=None) -> SegmentResult:
+def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmenter: str = "classical",
+                  seed: int = 0, max_size: int = 4096, progress=None) -> SegmentResult:
     """Segment the main tree of a photo and write its labels.
 
     Parameters
@@ -44,6 +46,10 @@ def segment_photo(photo, *, out=None, overlay=None, segmenter: str = "classical"
         ``labels.png``: 8-bit single channel, 0 background / 1 foliage / 2 wood, photo size.
     overlay : path-like, optional
         The photo with background dimmed, foliage green and wood red (PNG).
+    mask : path-like, optional
+        The tree as a black-and-white PNG (255 = foliage or wood), as ``reconstruct --mask`` reads it.
+    wood : path-like, optional
+        The wood (trunk and branches) as a black-and-white PNG, as ``grow --mask`` reads it.
     segmenter : {'learned', 'classical'}
     seed : int
         Seed of the classical graph cut (the network is deterministic).
@@ -63,6 +69,8 @@ def segment_photo(photo, *, out=None, overlay=None, segmenter: str = "classical"
     check_choice(segmenter, "segmenter", SEGMENTERS)
     out_p = check_out_file(out) if out is not None else None
     ov_p = check_out_file(overlay, "--overlay") if overlay is not None else None
+    mask_p = check_out_file(mask, "--mask") if mask is not None else None
+    wood_p = check_out_file(wood, "--wood") if wood is not None else None
     timer = StageTimer(progress)
     with timer.stage("load"):
         from treeform.methods._single_photo import as_photo
@@ -80,6 +88,10 @@ def segment_photo(photo, *, out=None, overlay=None, segmenter: str = "classical"
             from treeform.report.preview import segmentation_overlay
 
             files["overlay"] = write_png(segmentation_overlay(ph.image, seg), ov_p)
+        if mask_p is not None:
+            files["mask"] = write_png(np.where(seg.labels > 0, 255, 0).astype(np.uint8), mask_p)
+        if wood_p is not None:
+            files["wood"] = write_png(np.where(seg.labels == 2, 255, 0).astype(np.uint8), wood_p)
     return SegmentResult(seg, ph, files, dict(timer.timings))
 
 

@@ -58,7 +58,8 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         User tree mask (white = tree) replacing the segmentation network.
     out : path, optional
         Directory for tree.glb, tree.obj (+ .mtl, textures), skeleton.json, skeleton.ply,
-        preview.png, metrics.json and config.json (all or nothing).
+        preview.png, metrics.json, config.json and rbv.npz (the predicted radial bounding
+        volume, in metres, what ``grow --rbv`` reads) — all or nothing.
     config : LearnedConfig, optional
     progress : callable, optional
         ``progress(stage, event, seconds)`` over :data:`STAGES`.
@@ -73,7 +74,7 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
     ------
     InputError, NoTreeFoundError, ModelError, OutputError
     """
-    from treeform.methods._single_photo import load_photo, photo_camera, segment_or_mask, side_top_cameras
+    from treeform.methods._single_photo import load_photo, photo_camera, render_previews, segment_or_mask
 
     cfg = LearnedConfig.from_dict({**(config.to_dict() if config else {}), **options})
     out_dir = check_out_dir(out) if out is not None else None
@@ -110,26 +111,25 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         branch_mask = wood if wood.sum() >= 2 else None
         grown = grow_tree(species, seed=cfg.seed, rbv_volume=rbv, branch_mask=branch_mask, mask_scale=mpp,
                           mask_base=layout.base if branch_mask is not None else None, previews=False,
-                          leaves=cfg.leaves, lod=cfg.lod)
+                          leaves=cfg.leaves, lod=cfg.lod, foliage=cfg.foliage, texture_size=cfg.texture_size)
         skeleton, foliage, mesh = grown.skeleton, grown.foliage, grown.mesh
         skeleton.meta.update({"method": "learned", "source": Path(ph.source).name if ph.source else None})
     for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage
         timer.timings[k] = grown.metrics["timings"].get(k, 0.0)
     with timer.stage("render"):
         from treeform.metrics import extent_ratio, iou, reprojection_error
+        from treeform.metrics.treeform_metrics import crown_extents, tree_height
         from treeform.methods.learned.grow import preview_lighting
-        from treeform.render import Renderer, to_uint8_rgb
-        from treeform.report import compose_strip, segmentation_overlay
+        from treeform.report import photo_window, preview_strip
 
-        light = preview_lighting()
-        renders = {"front": Renderer(cam, lighting=light).render(mesh)}
-        for name, vc in side_top_cameras(cam, tree_h, cfg.render_size).items():
-            renders[name] = Renderer(vc, lighting=light).render(mesh)
-        front = renders["front"].mask
+        # the front view is the photo's camera, widened to show the whole tree; side shares its scale
+        renders = render_previews(mesh, front=cam, lighting=preview_lighting())
+        window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
+        front = renders["front"].mask[window]
         metrics = {
             "reprojection_error": reprojection_error(front, seg.tree_mask),
             "iou": iou(front, seg.tree_mask),
-            "depth_width_ratio": extent_ratio(renders["side"].mask, front),
+            "depth_width_ratio": extent_ratio(renders["side"].mask, renders["front"].mask),
             "species": species,
             "species_predicted": next(iter(probs)),
             "species_probabilities": {k: round(v, 4) for k, v in probs.items()},
@@ -142,9 +142,10 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
             "triangles": mesh.n_triangles,
             "photo_size": [width_px, height_px],
             "metres_per_pixel": mpp,
+            "tree_height_m": tree_height(skeleton),
+            **crown_extents(skeleton),
         }
-        preview = compose_strip([image, segmentation_overlay(image, seg)]
-                                + [to_uint8_rgb(renders[k].color) for k in ("front", "side", "top")])
+        preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
     result = LearnedReconstruction(ph, seg, species, probs, rbv, cam, skeleton, foliage, mesh, metrics, cfg, renders,
                                    preview)
     if out_dir is not None:
@@ -153,7 +154,8 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
 
             config_out = {"treeform": __version__, "method": "learned", "photo": ph.source, "config": cfg.to_dict()}
             result.files = write_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton, preview=preview,
-                                              config=config_out, metrics=metrics)
+                                              config=config_out, metrics=metrics,
+                                              extra=[lambda d: rbv.save(d / "rbv.npz")])
     metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     metrics["total_seconds"] = round(sum(v for k, v in timer.timings.items() if k not in ("leaves", "mesh")), 4)
     if out_dir is not None:

@@ -43,6 +43,18 @@ class VariationsConfig:
     """How partners are chosen: 'similar' (at random among the 5 exemplars whose contours
     are closest, which avoids combining radically different trees, §7 Limitations) or
     'random'."""
+    any_form: bool = False
+    """Combine exemplars of any growth form. By default a variation combines exemplars of
+    one form only, broadleaf, conifer or palm, read from their silhouettes
+    (:mod:`treeform.methods.variations.form`); another form is used only for an exemplar
+    that is the library's only one of its form."""
+    season_space: str = "lab"
+    """Season transfer (``season=``): the colour space whose channels are matched one by
+    one, 'lab' (CIE L*a*b*, default: lightness apart from the two colour axes) or 'rgb'
+    (the paper's; turns greyish stems and shaded leaves pink)."""
+    season_min_trunk: float = 0.005
+    """Season transfer: the photo's trunk colours go onto the trunks only when its visible
+    trunk is at least this fraction of the photographed tree; else the trunks keep theirs."""
     tile: int = 256
     """Side of one tile of a contact sheet, pixels."""
     photo_max_size: int = 1024
@@ -50,7 +62,8 @@ class VariationsConfig:
     matting_side: int = 800
     """Long side at which alpha matting runs (the alpha is upsampled to the photo's size)."""
     segmenter: str = "classical"
-    """Billboards from photos: tree segmentation, 'classical' (colour rules, default) or 'learned' (network)."""
+    """Billboards from photos and the season photo: tree segmentation, 'classical' (colour rules,
+    default) or 'learned' (network)."""
     sky_gaps: bool = False
     """Billboards: make sky seen through gaps in the crown transparent (the automatic
     segmentation counts those gaps as tree, so this lowers the IoU with it a little)."""
@@ -58,6 +71,12 @@ class VariationsConfig:
     def validate(self) -> "VariationsConfig":
         check_choice(self.pairing, "pairing", ("similar", "random"))
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
+        check_choice(self.season_space, "season_space", ("lab", "rgb"))
+        if not isinstance(self.any_form, bool):
+            raise InputError(f"any_form: expected true or false, got {self.any_form!r}")
+        v = self.season_min_trunk
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1:
+            raise InputError(f"season_min_trunk: expected a fraction in [0, 1], got {v!r}")
         for name, lo, hi in (("size", 64, 8192), ("trunk_points", 1, 100_000), ("crown_points", 3, 1_000_000),
                              ("simplified_points", 5, 1000), ("dilate", 0, 256), ("mvc_step", 1, 64),
                              ("exemplars_per_variation", 1, 16), ("tile", 16, 4096), ("photo_max_size", 16, 8192),

@@ -273,6 +273,7 @@ class Exemplar:
     dilate: int = 8
     _prem: np.ndarray | None = field(default=None, repr=False, compare=False)
     _cs: dict = field(default_factory=dict, repr=False, compare=False)
+    _form: str | None = field(default=None, repr=False, compare=False)
 
     @property
     def size(self) -> int:
@@ -289,6 +290,16 @@ class Exemplar:
         """(3, 2) positions of B, L, R."""
         c0, c1, _ = self.counts
         return self.resampled[[0, c0 + c1, c0]]
+
+    @property
+    def form(self) -> str:
+        """Growth form read from the silhouette, 'broadleaf', 'conifer' or 'palm'
+        (:func:`~treeform.methods.variations.form.classify_form`; computed once)."""
+        if self._form is None:
+            from treeform.methods.variations.form import classify_form
+
+            self._form = classify_form(self.rgba)
+        return self._form
 
     @property
     def vector(self) -> np.ndarray:

@@ -3,12 +3,13 @@
 * :func:`process_library` — every RGBA tree of a directory -> processed
   :class:`~treeform.methods.variations.exemplar.Exemplar` (§4.1–4.6), cached per file
   (npz keyed by the file's SHA-256 and the processing options);
-* :func:`vary` — n new trees from random convex combinations of exemplars (§5.1–5.2),
-  or variations of a given tree T (§3), optionally histogram-matched to a season
-  reference (§5.3); PNGs, ``contact_sheet.png`` and ``config.json``;
+* :func:`vary` — n new trees from random convex combinations of exemplars of the same
+  growth form (§5.1–5.2, :mod:`.form`), or variations of a given tree T (§3), optionally
+  given the crown and trunk colours of a photographed tree (§5.3, :mod:`.season`); PNGs,
+  ``contact_sheet.png`` and ``config.json``;
 * :func:`morph` — the morph between two trees, ``(1 - t) u_A + t u_B`` (§5.1, Fig. 7);
 * :func:`billboard` — photo -> RGBA billboard by segmentation, trimap and alpha matting
-  (§4.3, Fig. 4).
+  (§4.3, Fig. 4; in :mod:`.billboard`, re-exported here).
 
 Every output is written atomically (temporary names, then renames); nothing is left
 behind when a step fails.
@@ -31,6 +32,7 @@ from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.images import read_rgba
 from treeform.io.outputs import check_out_dir, check_out_file, write_staged
+from treeform.methods.variations.billboard import BILLBOARD_STAGES, Billboard, billboard
 from treeform.methods.variations.config import VariationsConfig
 from treeform.report.preview import over_checkerboard
 from treeform.methods.variations.exemplar import (
@@ -39,7 +41,8 @@ from treeform.methods.variations.exemplar import (
     file_hash,
     process_exemplar,
 )
-from treeform.methods.variations.synthesis import Synthesis, match_histograms, synthesize
+from treeform.methods.variations.season import SeasonReference, season_reference, season_transfer
+from treeform.methods.variations.synthesis import Synthesis, synthesize
 
 __all__ = ["Library", "Variations", "Morph", "Billboard", "process_library", "load_exemplar", "vary", "morph",
            "billboard", "contact_sheet", "default_cache_dir", "vary_stages", "LIBRARY_STAGES",
@@ -49,7 +52,6 @@ log = logging.getLogger(__name__)
 
 LIBRARY_STAGES = ("library", "export")
 MORPH_STAGES = ("library", "morph", "export")
-BILLBOARD_STAGES = ("load", "segment", "trimap", "matting", "export")
 
 
 def vary_stages(n: int) -> tuple:
@@ -303,12 +305,23 @@ class Variations:
     timings: dict = field(default_factory=dict)
 
 
-def _partners(lib: Library, first: int, k: int, rng, pairing: str, exclude=()) -> list[int]:
+def _partners(lib: Library, first: int, k: int, rng, pairing: str, exclude=(), any_form: bool = True,
+              warned=None) -> list[int]:
     """``k`` other exemplars for ``first``: random, or random among the 5 most similar contours
-    (RMS distance of corresponding Cr points); near-duplicates of ``first`` are skipped."""
+    (RMS distance of corresponding Cr points); near-duplicates of ``first`` are skipped.
+    Unless ``any_form``, only exemplars of ``first``'s growth form (fewer than ``k`` if the
+    library has fewer; other forms only when it has none, with a warning)."""
     others = [j for j in range(len(lib)) if j != first and j not in exclude]
     if k <= 0 or not others:
         return []
+    if not any_form:
+        form = lib.exemplars[first].form
+        same = [j for j in others if lib.exemplars[j].form == form]
+        if same:
+            others = same
+        elif warned is not None and first not in warned:
+            warned.add(first)
+            log.warning("%s: no other %s in the library; it is combined with other forms", lib.names[first], form)
     base = lib.exemplars[first].resampled
     d = np.array([np.sqrt(((lib.exemplars[j].resampled - base) ** 2).sum(1).mean()) for j in others])
     # near-duplicates (contours within 3 % of the image size) would give a copy of the tree
@@ -333,10 +346,23 @@ def _weights(k: int, lo: float, hi: float, rng) -> np.ndarray:
     return rng.dirichlet(np.full(k, 2.0))
 
 
-def _read_reference(season) -> np.ndarray:
-    if isinstance(season, np.ndarray):
+def _season_reference(season, cfg: VariationsConfig) -> SeasonReference:
+    """The crown and trunk colours of the tree in the ``season`` photo (or RGBA tree)."""
+    if isinstance(season, SeasonReference):
         return season
-    return read_rgba(season, require_alpha=False)
+    if isinstance(season, np.ndarray):
+        image, name = season, "season"
+    else:
+        name = f"season: {season}"
+        image = read_rgba(season, require_alpha=False)  # one-line errors for a bad file
+        if not (image[..., 3] < 255).any():  # a photo: upright (EXIF) and reduced
+            from treeform.io import read_photo
+
+            image = read_photo(season, max_size=cfg.photo_max_size).image
+    try:
+        return season_reference(image, segmenter=cfg.segmenter, seed=cfg.seed, min_trunk=cfg.season_min_trunk)
+    except TreeformError as exc:
+        raise type(exc)(f"{name}: {exc}") from None
 
 
 def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_dir=None,
@@ -344,12 +370,14 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
     """New trees from a library of RGBA trees (seed 000 §3, §5).
 
     Each variation combines ``exemplars_per_variation`` exemplars: a random first one and
-    partners among the most similar contours (``pairing='similar'``), contour weights
-    w1 ~ U(``weight_range``) (§7: [0.3, 0.7]), random colour weights
-    (Dirichlet(``colour_concentration``), §5.2). With ``from_tree`` T, T is always first
-    and its weight is drawn from ``from_weight_range`` (higher weight on T's features,
-    §3), for both contour and colour. With ``season`` every variation is
-    histogram-matched to that reference image (§5.3).
+    partners of the same growth form (broadleaf, conifer or palm, from the silhouettes,
+    :mod:`.form`; any form with ``any_form=True``) among the most similar contours
+    (``pairing='similar'``), contour weights w1 ~ U(``weight_range``) (§7: [0.3, 0.7]),
+    random colour weights (Dirichlet(``colour_concentration``), §5.2). With ``from_tree``
+    T, T is always first and its weight is drawn from ``from_weight_range`` (higher
+    weight on T's features, §3), for both contour and colour. With ``season`` every
+    variation takes the colours of the tree in that photo, crown and trunk apart
+    (§5.3, :func:`~.season.season_transfer`).
 
     Parameters
     ----------
@@ -362,8 +390,9 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
         (written only when every variation succeeded).
     from_tree : path-like, optional
         An RGBA tree T to make variations of.
-    season : path-like or ndarray, optional
-        Reference image (RGB or RGBA) for histogram transfer.
+    season : path-like, ndarray or SeasonReference, optional
+        A photo of a tree whose colours the variations take (segmented first; only its
+        tree counts), or an RGBA tree (its alpha is the mask).
     cache_dir : path-like, optional
         Exemplar cache (default :func:`default_cache_dir`).
     config : VariationsConfig, optional
@@ -375,8 +404,8 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
     Returns
     -------
     Variations
-        ``images`` (n arrays (S, S, 4) uint8), ``records`` (exemplar names, contour and
-        colour weights per variation), ``sheet``, ``files``.
+        ``images`` (n arrays (S, S, 4) uint8), ``records`` (exemplar names and forms,
+        contour and colour weights per variation), ``sheet``, ``files``.
     """
     cfg = _config(config, options)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 10_000:
@@ -385,7 +414,7 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
     timer = StageTimer(progress)
     rng = as_rng(cfg.seed)
     with timer.stage("library"):
-        ref = _read_reference(season) if season is not None else None
+        ref = _season_reference(season, cfg) if season is not None else None
         lib = library if isinstance(library, Library) else process_library(library, cache_dir=cache_dir, config=cfg)
         t_index = None
         if from_tree is not None:
@@ -400,16 +429,17 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
         if len(lib) < 2 and cfg.exemplars_per_variation > 1:
             raise InputError(f"library: {len(lib)} exemplar(s); at least 2 are needed to make variations")
     k = min(cfg.exemplars_per_variation, len(lib))
-    images, records = [], []
+    images, records, warned = [], [], set()
+    pick = dict(any_form=cfg.any_form, warned=warned)
     for i in range(n):
         with timer.stage(f"variation {i + 1}/{n}"):
             if t_index is None:
                 first = int(rng.integers(len(lib)))
-                chosen = [first] + _partners(lib, first, k - 1, rng, cfg.pairing)
+                chosen = [first] + _partners(lib, first, k - 1, rng, cfg.pairing, **pick)
                 w = _weights(len(chosen), *cfg.weight_range, rng)
                 b = rng.dirichlet(np.full(len(chosen), cfg.colour_concentration))
             else:
-                chosen = [t_index] + _partners(lib, t_index, k - 1, rng, cfg.pairing)
+                chosen = [t_index] + _partners(lib, t_index, k - 1, rng, cfg.pairing, **pick)
                 wt = rng.uniform(*cfg.from_weight_range)
                 bt = rng.uniform(*cfg.from_weight_range)
                 rest = rng.dirichlet(np.full(len(chosen) - 1, 2.0)) if len(chosen) > 1 else np.zeros(0)
@@ -417,9 +447,10 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
                 b = np.concatenate([[bt], (1 - bt) * rest]) if len(chosen) > 1 else np.ones(1)
             syn: Synthesis = synthesize([lib.exemplars[j] for j in chosen], w, colour_weights=b,
                                         m=cfg.simplified_points, mvc_step=cfg.mvc_step)
-            img = syn.rgba if ref is None else match_histograms(syn.rgba, ref)
+            img = syn.rgba if ref is None else season_transfer(syn.rgba, syn.labels, ref, space=cfg.season_space)
             images.append(img)
             records.append({"file": f"variation_{i:03d}.png", "exemplars": [lib.names[j] for j in chosen],
+                            "forms": [lib.exemplars[j].form for j in chosen],
                             "weights": [round(float(x), 6) for x in syn.weights],
                             "colour_weights": [round(float(x), 6) for x in syn.colour_weights]})
     res = Variations(images, records, cfg)
@@ -430,7 +461,8 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
             files["contact_sheet.png"] = _png(res.sheet)
             meta = {"treeform": __version__, "method": "variations", "library": [str(p) for p in lib.paths],
                     "from": str(from_tree) if from_tree is not None else None,
-                    "season": str(season) if season is not None and not isinstance(season, np.ndarray) else None,
+                    "season": str(season) if isinstance(season, (str, os.PathLike)) else None,
+                    "season_trunk": ref.has_trunk if ref is not None else None,
                     "n": n, "config": cfg.to_dict(), "variations": records}
             files["config.json"] = lambda p: p.write_text(json.dumps(meta, indent=1, sort_keys=True))
             res.files = write_staged(out_dir, [lambda d, n=name, w=writer: w(d / n) for name, writer in files.items()])
@@ -497,123 +529,4 @@ def morph(a, b, *, steps: int = 7, out=None, cache_dir=None, config: VariationsC
 
             write_png(strip, out_path)
             res.files = {"strip": out_path}
-    return res
-
-
-# --------------------------------------------------------------------------- billboard
-
-
-@dataclass
-class Billboard:
-    """What :func:`billboard` made."""
-
-    rgba: np.ndarray
-    alpha: np.ndarray
-    trimap: np.ndarray
-    segmentation: object
-    photo: object
-    box: tuple
-    metrics: dict
-    sheet: np.ndarray | None = None
-    files: dict = field(default_factory=dict)
-
-
-def billboard(photo, *, out=None, sheet=None, config: VariationsConfig | None = None,
-              progress: ProgressCallback | None = None, **options) -> Billboard:
-    """Photo of a tree -> RGBA billboard (seed 000 §4.3, Fig. 4).
-
-    The photo is segmented automatically (:func:`treeform.segment.segment`); a
-    trimap is derived from the segmentation (a dilated band = unknown, the eroded trunk
-    and points sampled in the eroded crown = foreground, the rest = background — with
-    ``sky_gaps=True`` also sky seen through crown gaps, beyond the paper,
-    :func:`treeform.segment.make_trimap`); closed-form alpha
-    matting and foreground colour estimation (PyMatting) give the billboard, which is
-    cropped to the tree with a small transparent margin.
-
-    Parameters
-    ----------
-    photo : path-like, ndarray (H, W, 3) uint8 or Photo
-    out : path-like, optional
-        The RGBA PNG to write.
-    sheet : path-like, optional
-        A PNG of photo | trimap | billboard over a checkerboard.
-    config : VariationsConfig, optional
-    progress : callable, optional
-        Stages :data:`BILLBOARD_STAGES`.
-
-    Returns
-    -------
-    Billboard
-        ``rgba`` (cropped), ``alpha`` (photo size), ``metrics`` with ``iou`` = IoU of
-        ``alpha > 0.5`` with the segmentation's tree mask.
-    """
-    from treeform.structures import Photo
-
-    cfg = _config(config, options)
-    out_path = check_out_file(out) if out is not None else None
-    sheet_path = check_out_file(sheet, "--sheet") if sheet is not None else None
-    timer = StageTimer(progress)
-    with timer.stage("load"):
-        if isinstance(photo, Photo):
-            ph = photo
-        elif isinstance(photo, np.ndarray):
-            if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
-                raise InputError(f"photo: expected an (H, W, 3) uint8 array, got {photo.shape} {photo.dtype}")
-            ph = Photo(np.ascontiguousarray(photo))
-        else:
-            from treeform.io import read_photo
-
-            ph = read_photo(photo, max_size=cfg.photo_max_size)
-        image = ph.image
-    with timer.stage("segment"):
-        from treeform.segment import segment
-
-        seg = segment(image, method=cfg.segmenter, seed=cfg.seed)
-    with timer.stage("trimap"):
-        from treeform.segment.matting import make_trimap
-
-        tri = make_trimap(image, seg, gaps=cfg.sky_gaps, seed=cfg.seed)
-    with timer.stage("matting"):
-        from treeform.segment.matting import alpha_matting, estimate_foreground
-
-        alpha = alpha_matting(image, tri, max_side=cfg.matting_side)
-        fg = estimate_foreground(image, alpha)
-        full = np.empty(image.shape[:2] + (4,), np.uint8)
-        full[..., :3] = np.clip(np.rint(fg * 255), 0, 255)
-        full[..., 3] = np.clip(np.rint(alpha * 255), 0, 255)
-        full[full[..., 3] == 0] = 0
-        m = alpha > 0.5
-        tree = seg.tree_mask
-        union = int((m | tree).sum())
-        iou = float((m & tree).sum() / union) if union else 0.0
-        ys, xs = np.nonzero(full[..., 3] > 0)
-        if ys.size == 0:
-            from treeform._shared.errors import NoTreeFoundError
-
-            raise NoTreeFoundError("the matte is empty: no tree found in the photo")
-        pad = max(2, int(round(0.02 * max(image.shape[:2]))))
-        h, w = alpha.shape
-        box = (max(0, ys.min() - pad), max(0, xs.min() - pad), min(h, ys.max() + 1 + pad), min(w, xs.max() + 1 + pad))
-        rgba = full[box[0]:box[2], box[1]:box[3]].copy()
-    res = Billboard(rgba, alpha, tri, seg, ph, box, {"iou": iou, "size": [int(w), int(h)]})
-    with timer.stage("export"):
-        targets, arrays = [], []
-        if sheet_path is not None:
-            tri8 = np.repeat((tri * 255).astype(np.uint8)[..., None], 3, axis=2)
-            res.sheet = contact_sheet([image, tri8, full], tile=max(cfg.tile, 384), cols=3)
-            targets.append(sheet_path)
-            arrays.append(res.sheet)
-        if out_path is not None:
-            targets.append(out_path)
-            arrays.append(rgba)
-        if targets:
-            from treeform.io import write_png
-            from treeform.io._atomic import atomic_paths
-
-            with atomic_paths(targets) as temps:  # both files, or neither
-                for tmp, arr in zip(temps, arrays):
-                    write_png(arr, tmp)
-            res.files = dict(zip(["sheet"] * (sheet_path is not None) + ["billboard"] * (out_path is not None),
-                                 targets))
-    res.metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     return res

@@ -7,7 +7,8 @@
   position, sampled bilinearly; alpha is the maximum over the exemplars and colour a
   convex combination of the exemplars' colours where they are not transparent;
 * §5.3 histogram transfer of each RGB channel to a reference image, transparent pixels
-  ignored.
+  ignored (:func:`match_histograms`; from the tree of a photo, crown and trunk apart:
+  :mod:`treeform.methods.variations.season`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 from treeform.contour import fill_contour, mvc_map, simplify_contour
+from treeform.methods.variations.exemplar import TRUNK
 
 __all__ = ["Synthesis", "combine_contours", "check_weights", "warp_coordinates", "transfer_rgba",
            "match_histograms", "synthesize"]
@@ -39,6 +41,9 @@ class Synthesis:
     simplified : ndarray, shape (M, 2)
         Cs' used for the mean value coordinates.
     weights, colour_weights : ndarray, shape (J,)
+    labels : ndarray, shape (S, S), uint8, or None
+        0 background, 1 crown, 2 trunk: a pixel is trunk where its colour comes mostly
+        from the exemplars' trunks (for :func:`~.season.season_transfer`).
     """
 
     rgba: np.ndarray
@@ -47,6 +52,7 @@ class Synthesis:
     simplified: np.ndarray
     weights: np.ndarray
     colour_weights: np.ndarray
+    labels: np.ndarray | None = None
 
 
 def check_weights(weights, n: int, name: str = "weights") -> np.ndarray:
@@ -206,19 +212,31 @@ def transfer_rgba(mask, target_polygon, images, source_polygons, colour_weights,
     ndarray, shape (S, S, 4), uint8
         Straight alpha; (0, 0, 0, 0) outside ``mask`` and where every sample is transparent.
     """
+    return _transfer(mask, target_polygon, images, source_polygons, colour_weights, step=step)[0]
+
+
+def _transfer(mask, target_polygon, images, source_polygons, colour_weights, *, step: int = 4, trunks=None):
+    """:func:`transfer_rgba`, and with ``trunks`` (J (S, S) bool maps) the labels of the
+    result: a pixel is trunk where its colour comes mostly from trunk samples (the
+    opacity- and colour-weighted share of trunk, bilinear, >= 0.5), else crown."""
     m = np.asarray(mask, bool)
     b = check_weights(colour_weights, len(images), "colour_weights")
     coords, ys, xs = warp_coordinates(m, target_polygon, source_polygons, step=step)
     prem_sum = np.zeros((len(ys), 3), np.float32)
     wsum = np.zeros(len(ys), np.float32)
     alpha = np.zeros(len(ys), np.float32)
+    trunk_sum = np.zeros(len(ys), np.float32)
     for j, img in enumerate(images):
-        s = _sample(_premultiplied(img), coords[j])
+        prem = _premultiplied(img)
+        s = _sample(prem, coords[j])
         a = np.clip(s[:, 3], 0.0, 1.0)
         alpha = np.maximum(alpha, a)
         if b[j] > 0:
             prem_sum += np.float32(b[j]) * s[:, :3]
             wsum += np.float32(b[j]) * a
+            if trunks is not None:  # the trunk indicator, premultiplied like the colours
+                t = (np.asarray(trunks[j], bool) * prem[..., 3]).astype(np.float32)[..., None]
+                trunk_sum += np.float32(b[j]) * _sample(t, coords[j]).reshape(-1)
     # pixels where every weighted exemplar is transparent take the unweighted mean colour
     out = np.zeros(m.shape + (4,), np.uint8)
     ok = wsum > 1e-6
@@ -238,7 +256,12 @@ def transfer_rgba(mask, target_polygon, images, source_polygons, colour_weights,
     rgb8[a8 == 0] = 0
     out[ys, xs, :3] = rgb8
     out[ys, xs, 3] = a8
-    return out
+    if trunks is None:
+        return out, None
+    labels = np.zeros(m.shape, np.uint8)
+    trunk = ok & (trunk_sum >= 0.5 * wsum)
+    labels[ys, xs] = np.where(a8 > 0, np.where(trunk, 2, 1), 0)
+    return out, labels
 
 
 def _reference_pixels(reference, threshold: float) -> np.ndarray:
@@ -339,5 +362,6 @@ def synthesize(exemplars, weights, *, colour_weights=None, m: int = 20, mvc_step
     # t = 0 or 1 is exactly one of its ends)
     active = [j for j in range(len(ex)) if w[j] > 0 or b[j] > 0]
     cs_src = np.stack([ex[j].simplified_contour(m) for j in active])
-    rgba = transfer_rgba(mask, cs_t, [ex[j] for j in active], cs_src, b[active], step=mvc_step)
-    return Synthesis(rgba, mask, contour, cs_t, w, b)
+    rgba, labels = _transfer(mask, cs_t, [ex[j] for j in active], cs_src, b[active], step=mvc_step,
+                             trunks=[ex[j].labels == TRUNK for j in active])
+    return Synthesis(rgba, mask, contour, cs_t, w, b, labels)

@@ -1,0 +1,34 @@
+"""Species appearance: leaf colour, size and leaf type (broadleaf, needles, scales)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from treeform._shared.errors import InputError
+from treeform.growth.species import SPECIES, load_species_appearance
+
+
+def test_pine_has_needles_the_others_broadleaves():
+    kinds = {name: load_species_appearance(name).leaf_type for name in SPECIES}
+    assert kinds.pop("pine") == "needles"
+    assert set(kinds.values()) == {"broadleaf"}
+
+
+def test_a_variant_keeps_its_base_leaf_type_and_can_change_it(tmp_path):
+    variant = tmp_path / "blue_pine.json"
+    variant.write_text(json.dumps({"base": "pine", "parameters": {}, "appearance": {"leaf_color": [0.2, 0.3, 0.4]}}))
+    look = load_species_appearance(variant)
+    assert look.leaf_type == "needles" and look.leaf_color == (0.2, 0.3, 0.4)
+    assert look.leaf_size == load_species_appearance("pine").leaf_size  # the base's, not the default
+    thuja = tmp_path / "thuja.json"
+    thuja.write_text(json.dumps({"base": "pine", "parameters": {}, "appearance": {"leaf_type": "scales"}}))
+    assert load_species_appearance(thuja).leaf_type == "scales"
+
+
+def test_bad_leaf_type(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"base": "oak", "parameters": {}, "appearance": {"leaf_type": "needle"}}))
+    with pytest.raises(InputError, match="leaf_type"):
+        load_species_appearance(bad)
