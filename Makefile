@@ -45,7 +45,7 @@ weights: $(STAMP) sysdeps
 	mkdir -p $(DATA) $(RUNS)
 	$(VENV)/bin/treeform dataset generate --n 2400 --out $(DATA)/train --seed 1 --shard-size 200
 	$(VENV)/bin/treeform dataset generate --n 400 --out $(DATA)/test --seed 2 --shard-size 200
-	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --out $(RUNS)/seg
+	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --photos ../shared/data/photos --out $(RUNS)/seg
 	cp $(RUNS)/seg/model.onnx src/treeform/learn/weights/seg.onnx
 	$(VENV)/bin/treeform train species --data $(DATA)/train --test-data $(DATA)/test --seg-weights src/treeform/learn/weights/seg.onnx --out $(RUNS)/species
 	cp $(RUNS)/species/model.onnx src/treeform/learn/weights/species.onnx

@@ -2,8 +2,9 @@
 
 1. **Real texture, exact truth**: the held-out ('test' split by tree identity) RGBA cut-outs
    of ../shared/data/billboards (and more/) pasted at random scale and position over
-   blurred crops of the real photos in ../shared/data/photos; tree-vs-background IoU of
-   both segmenters (median, mean, share >= 0.9). The photos are never used in training.
+   blurred crops of the held-out real photos in ../shared/data/photos (the 'test' side of
+   ``photo_split``, by species; the other side serves as training backgrounds);
+   tree-vs-background IoU of both segmenters (median, mean, share >= 0.9).
 2. **Synthetic test split** (when --test-data is given, a dataset of another seed): the
    learned network's per-class IoU and mean IoU on randomised scenes of held-out trees.
 3. **Speed**: median seconds of each segmenter on a 512-px photo (in-process, warm).
@@ -30,10 +31,12 @@ SHARED = ROOT.parent / "shared" / "data"
 def composites(n: int, size: int, seed: int):
     from PIL import Image
 
-    from treeform.dataset.scenes import load_cutouts, paste_on_photo
+    from treeform.dataset.scenes import load_cutouts, paste_on_photo, photo_split
 
     sprites = load_cutouts(SHARED / "billboards", split="test")
-    photos = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((SHARED / "photos").glob("*.jpg"))]
+    # only the photos of the held-out side: the other side serves as training backgrounds
+    photos = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((SHARED / "photos").glob("*.jpg"))
+              if photo_split(p.name) == "test"]
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):

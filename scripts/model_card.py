@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import statistics
 import sys
 import time
@@ -113,6 +112,9 @@ def main():
           "building scene with cars, people-sized figures, hedges, posts, out-of-focus trees behind, distant "
           "trees and neighbour trees cut by the frame edge (all labelled background), plus haze, blur, "
           "exposure, white balance, gamma, noise and JPEG artefacts; 8 % of scenes hold no main tree. "
+          "A fifth of the scenes stand on an out-of-focus crop (Gaussian sigma 3-8 px at 512 px) of a real "
+          "photo of `../shared/data/photos` instead of a procedural scene: only the 'train' side of a fixed "
+          "split by species (`photo_split`), the other side is left to the real-texture benchmark. "
           "The test split is the same recipe over held-out trees (the test dataset, another seed) and held-out "
           "cut-out identities, with a scene seed training never uses.", ""]
 
@@ -127,7 +129,8 @@ def main():
               "Loss: cross-entropy (wood weighted), with cut-out pixels scored by the summed foliage + wood "
               "probability, plus a Dice term on wood. At run time the photo is seen at 320 px on its long "
               "side; the tree probability is upsampled, snapped to the photo's edges by a guided filter and "
-              "the main tree (largest part and its neighbours) kept.", "",
+              "the main tree kept: the part with the largest area x (median sharpness)^2, so a blurred tree "
+              "behind loses to the photographed one, and its neighbours.", "",
               f"- parameters: {n:,}; ONNX {mb:.2f} MB",
               f"- training: {c.get('steps')} steps x {c.get('batch')} scenes of {c.get('size')} px, AdamW "
               f"(peak lr {c.get('lr')}, cosine), seed {c.get('seed')}; "

@@ -3,8 +3,11 @@
 import numpy as np
 import pytest
 
+from treeform._shared.errors import InputError
+
 from treeform.dataset.scenes import (SEASONS, TREE_ANY, Sprite, compose_scene, cutout_split, load_cutouts,
-                                     paste_on_photo, recolor_season, sprite_from_render)
+                                     load_photos, paste_on_photo, photo_background, photo_split, recolor_season,
+                                     sprite_from_render)
 
 
 def _sprite(rng_seed=0, known=True):
@@ -88,3 +91,47 @@ def test_paste_on_photo_mask_matches_the_pasted_alpha():
     assert 0.02 < frac < 0.9
     # the tree pixels carry the sprite's green, the rest the blurred photo
     assert img[mask][:, 1].mean() > img[mask][:, 0].mean()
+
+
+def test_photo_split_keeps_a_species_together(tmp_path):
+    from PIL import Image
+
+    species = ["Acer_rubrum", "Quercus_alba", "Pinus_taeda", "Thuja_plicata", "Ulmus_americana", "Morus_rubra",
+               "Cornus_florida", "Fagus_grandifolia"]
+    for sp in species:
+        assert photo_split(f"{sp}_1.jpg") == photo_split(f"{sp}_2.jpg") == photo_split(f"{sp.lower()}_3.JPG")
+    assert {photo_split(f"{sp}_1.jpg") for sp in species} == {"train", "test"}
+    for i, sp in enumerate(species[:4]):
+        Image.fromarray(np.full((40, 60, 3), 40 * i, np.uint8)).save(tmp_path / f"{sp}_1.jpg")
+    (tmp_path / "notes.txt").write_text("not a photo")
+    train, test = load_photos(tmp_path, split="train"), load_photos(tmp_path, split="test")
+    assert len(train) + len(test) == 4 and all(p.shape == (40, 60, 3) for p in train + test)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="no JPEG"):
+        load_photos(tmp_path / "empty")
+    with pytest.raises(InputError, match="not a directory"):
+        load_photos(tmp_path / "missing")
+
+
+def test_photo_background_is_an_out_of_focus_crop():
+    rng = np.random.default_rng(0)
+    photo = rng.integers(0, 255, (300, 400, 3)).astype(np.uint8)
+    a = photo_background(photo, np.random.default_rng(1), size=96)
+    b = photo_background(photo, np.random.default_rng(1), size=96)
+    assert a.shape == (96, 96, 3) and a.dtype == np.uint8 and np.array_equal(a, b)
+    assert a.std() < photo.std() / 3  # blurred: the pixel noise is gone
+    assert abs(float(a.mean()) - float(photo.mean())) < 10
+
+
+def test_scene_stream_composes_over_real_photos():
+    from treeform.learn.data import SceneStream
+
+    red = np.zeros((200, 300, 3), np.uint8)
+    red[...] = (200, 30, 30)
+    st = SceneStream([_sprite(0)], photos=[red], photo_fraction=1.0, negatives=1.0, size=64, pool=8)
+    imgs, labs = st.chunk(0, 4)
+    assert not labs.any()  # scenes without a main tree: all background
+    r, g = imgs[..., 0].astype(int), imgs[..., 1].astype(int)
+    assert np.median(r - g) > 60  # the photo shows through (clutter covers only part of it)
+    imgs2, _ = SceneStream([_sprite(0)], photos=[red], photo_fraction=1.0, negatives=1.0, size=64, pool=8).chunk(0, 4)
+    assert np.array_equal(imgs, imgs2)

@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from treeform._shared.errors import ModelError, NoTreeFoundError
-from treeform.learn.infer import Segmenter, main_tree, predict_rbv, predict_species, weights_path
+from treeform.learn.infer import Segmenter, focus_map, main_tree, predict_rbv, predict_species, weights_path
 from treeform.segment import segment, segment_tree_learned
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,6 +72,25 @@ def test_main_tree_drops_a_separate_neighbour():
     m[15:19, 45:55] = True        # a piece of crown just above the tree (kept)
     keep = main_tree(m)
     assert keep[50, 50] and keep[16, 50] and not keep[40, 3]
+
+
+def test_main_tree_prefers_the_sharp_tree_over_a_larger_blurred_one():
+    import cv2
+
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 255, (120, 160, 3)).astype(np.uint8)  # texture everywhere
+    img[:, 60:] = cv2.GaussianBlur(img, (0, 0), 4.0)[:, 60:]   # the right part out of focus
+    m = np.zeros((120, 160), bool)
+    m[30:110, 10:50] = True      # sharp tree, 3200 px
+    m[10:110, 70:150] = True     # blurred tree behind, 8000 px
+    focus = focus_map(img)
+    assert focus.shape == m.shape and focus[:, :50].mean() > 3 * focus[:, 70:].mean()
+    assert main_tree(m)[60, 100] and not main_tree(m)[60, 30]        # by area alone: the big one
+    keep = main_tree(m, focus=focus)
+    assert keep[60, 30] and not keep[60, 100]
+    # equally sharp: area decides, as without focus
+    flat = focus_map(rng.integers(0, 255, (120, 160, 3)).astype(np.uint8))
+    assert np.array_equal(main_tree(m, focus=flat), main_tree(m))
 
 
 def test_missing_and_corrupt_weights_name_the_file_and_make_weights(tmp_path, celtis):

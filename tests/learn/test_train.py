@@ -26,9 +26,19 @@ def _fail_at(step):
 
 
 def test_seg_training_resumes_to_the_same_weights(tmp_path, tiny_data):
+    from PIL import Image
+
+    from treeform.dataset.scenes import photo_split
     from treeform.learn.train import train_seg
 
-    opts = dict(steps=4, batch=2, size=64, chunk=4, repeats=1, checkpoint_every=2, threads=1, width=8)
+    photos = tmp_path / "photos"  # real-photo backgrounds: only the 'train' side of the split is read
+    photos.mkdir()
+    rng = np.random.default_rng(0)
+    for name in ("Morus_rubra_1.jpg", "Juglans_nigra_1.jpg"):
+        assert photo_split(name) == "train"
+        Image.fromarray(rng.integers(0, 255, (48, 64, 3)).astype(np.uint8)).save(photos / name)
+    opts = dict(steps=4, batch=2, size=64, chunk=4, repeats=1, checkpoint_every=2, threads=1, width=8,
+                photos=photos, photo_fraction=0.5)
     a = train_seg(tiny_data, tmp_path / "a", test_data=tiny_data, **opts)
     with pytest.raises(KeyboardInterrupt):
         train_seg(tiny_data, tmp_path / "b", progress=_fail_at(3), **opts)  # killed after the step-2 checkpoint

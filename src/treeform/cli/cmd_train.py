@@ -19,7 +19,9 @@ def seg_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Run directory: checkpoint.pt, model.onnx, metrics.json."),
     test_data: Optional[Path] = typer.Option(None, "--test-data", help="Held-out dataset (another seed) for the test split."),
     cutouts: Optional[Path] = typer.Option(None, "--cutouts", help="Folder of RGBA tree cut-outs (real texture)."),
-    steps: int = typer.Option(3200, "--steps", help="Optimiser steps."),
+    photos: Optional[Path] = typer.Option(None, "--photos", help="Folder of real photos: one side of a fixed split "
+                                          "becomes out-of-focus backgrounds."),
+    steps: int = typer.Option(2800, "--steps", help="Optimiser steps."),
     batch: int = typer.Option(16, "--batch", help="Scenes per step."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
 ):
@@ -27,9 +29,9 @@ def seg_cmd(
     from treeform.cli.progress import TrainProgress
     from treeform.learn.train import train_seg
 
-    m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, steps=steps, batch=batch, seed=seed,
-                display=TrainProgress("seg"),
-                inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts)))
+    m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
+                seed=seed, display=TrainProgress("seg"),
+                inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos)))
     r, c = m.get("renders"), m.get("cutouts")
     if r:
         typer.echo(f"test renders: mean IoU {100 * r['mean_iou']:.1f} % "

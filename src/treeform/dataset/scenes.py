@@ -42,7 +42,7 @@ import numpy as np
 from treeform._shared.errors import InputError
 
 __all__ = ["Sprite", "TREE_ANY", "SEASONS", "compose_scene", "load_cutouts", "paste_on_photo", "sprite_from_render",
-           "recolor_season", "cutout_split"]
+           "recolor_season", "cutout_split", "photo_split", "load_photos", "photo_background"]
 
 TREE_ANY = 3
 """Label of a tree pixel whose part (foliage or wood) is unknown."""
@@ -95,6 +95,69 @@ def cutout_split(name: str, *, test_fraction: float = 0.25) -> str:
     ident = stem.split("_row")[0] + "_col" + stem.rsplit("_col", 1)[-1] if "_row" in stem else stem
     h = zlib.crc32(ident.encode()) % 1000
     return "test" if h < test_fraction * 1000 else "train"
+
+
+def photo_split(name: str, *, test_fraction: float = 0.35) -> str:
+    """'train' or 'test' for a background photo's file name, by species (all photos of one together).
+
+    The photos of ``../shared/data/photos`` are named ``Genus_species_N.jpg``; the trailing
+    number is dropped, so a species' photos never sit on both sides. Training scenes use the
+    'train' side as (blurred) backgrounds, the real-texture benchmark only the 'test' side.
+
+    >>> photo_split("Acer_rubrum_1.jpg") == photo_split("acer_rubrum_2.jpg")
+    True
+    """
+    stem = Path(name).stem.lower()
+    head, _, tail = stem.rpartition("_")
+    ident = head if head and tail.isdigit() else stem
+    h = zlib.crc32(ident.encode()) % 1000
+    return "test" if h < test_fraction * 1000 else "train"
+
+
+def load_photos(folder, *, split: str | None = None, max_side: int = 1024) -> list[np.ndarray]:
+    """The JPEG / PNG photos of a folder as RGB uint8 arrays (long side at most ``max_side``).
+
+    Parameters
+    ----------
+    folder : path
+    split : {'train', 'test'}, optional
+        Keep only that side of :func:`photo_split`.
+    """
+    from PIL import Image
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"photos {folder}: not a directory")
+    out = []
+    for f in sorted(q for q in folder.iterdir() if q.suffix.lower() in (".jpg", ".jpeg", ".png")):
+        if split is not None and photo_split(f.name) != split:
+            continue
+        with Image.open(f) as im:
+            rgb = np.asarray(im.convert("RGB"), np.uint8)
+        if max(rgb.shape[:2]) > max_side:
+            s = max_side / max(rgb.shape[:2])
+            rgb = cv2.resize(rgb, (round(rgb.shape[1] * s), round(rgb.shape[0] * s)), interpolation=cv2.INTER_AREA)
+        out.append(rgb)
+    if not out:
+        where = "" if split is None else f" in split {split!r}"
+        raise InputError(f"photos {folder}: no JPEG or PNG files{where}")
+    return out
+
+
+def photo_background(photo: np.ndarray, rng, *, size: int, blur: tuple = (2.0, 6.0)) -> np.ndarray:
+    """An out-of-focus background from a real photo: a random square crop, scaled and blurred.
+
+    The crop covers at least half the photo's short side; ``blur`` is the range of the
+    Gaussian sigma in pixels at a 512-px frame (scaled to ``size``), the depth of field
+    behind a photographed tree. Returns (size, size, 3) uint8.
+    """
+    S = int(size)
+    H, W = photo.shape[:2]
+    side = int(min(H, W) * rng.uniform(0.5, 1.0))
+    y, x = int(rng.integers(0, H - side + 1)), int(rng.integers(0, W - side + 1))
+    bg = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
+    sigma = rng.uniform(*blur) * S / 512.0
+    return np.clip(np.rint(cv2.GaussianBlur(bg.astype(np.float32), (0, 0), sigma)), 0, 255).astype(np.uint8)
 
 
 def load_cutouts(folder, *, split: str | None = None, recursive: bool = True) -> list[Sprite]:
@@ -427,11 +490,7 @@ def paste_on_photo(sprite: Sprite, photo: np.ndarray, rng, *, size: int = 512,
     (size, size) bool (coverage >= 1/2).
     """
     S = int(size)
-    H, W = photo.shape[:2]
-    side = int(min(H, W) * rng.uniform(0.5, 1.0))
-    y, x = int(rng.integers(0, H - side + 1)), int(rng.integers(0, W - side + 1))
-    bg = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
-    img = cv2.GaussianBlur(bg.astype(np.float32) / 255.0, (0, 0), rng.uniform(*blur))
+    img = photo_background(photo, rng, size=S, blur=tuple(b * 512.0 / S for b in blur)).astype(np.float32) / 255.0
     lab = np.zeros((S, S), np.uint8)
     rgba = sprite.rgba.astype(np.float32) / 255.0
     hpx = S * rng.uniform(0.4, 0.95)

@@ -66,18 +66,28 @@ class SceneStream:
         Share of scenes whose main tree is a cut-out (when there are any).
     negatives : float
         Share of scenes with no main tree.
+    photos : list of ndarray, optional
+        Real RGB photos; a share ``photo_fraction`` of the scenes is composed over an
+        out-of-focus crop of one of them (:func:`~treeform.dataset.scenes.photo_background`,
+        Gaussian sigma 3–8 px at a 512-px frame) instead of a procedural background: real
+        parks, streets and trees behind the main tree, labelled background. Only clearly
+        blurred: a sharp real tree labelled background teaches the network that real trees
+        are background (a run with sigma from 1 px missed whole trees on real photos).
+    photo_fraction : float
     pool : int
         Procedural backgrounds kept; ``pool // 8`` are redrawn per chunk.
     """
 
     def __init__(self, renders, cutouts=(), *, size: int = 224, seed: int = 0, cutout_fraction: float = 0.35,
-                 negatives: float = 0.08, pool: int = 256):
+                 negatives: float = 0.08, photos=(), photo_fraction: float = 0.2, pool: int = 256):
         self.renders, self.cutouts = list(renders), list(cutouts)
         if not self.renders and not self.cutouts:
             raise InputError("no tree sprites to compose scenes from")
         self.size, self.seed = int(size), int(seed)
         self.cutout_fraction = cutout_fraction if self.cutouts else 0.0
         self.negatives = negatives
+        self.photos = list(photos)
+        self.photo_fraction = photo_fraction if self.photos else 0.0
         self.pool_size = int(pool)
         self._pool: list | None = None
 
@@ -88,7 +98,7 @@ class SceneStream:
 
     def chunk(self, r: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Scenes of round ``r``: images (n, S, S, 3) uint8 and labels (n, S, S) uint8."""
-        from treeform.dataset.scenes import compose_scene
+        from treeform.dataset.scenes import compose_scene, photo_background
 
         # the pool after round r holds backgrounds r*step .. r*step + pool - 1 (deterministic per round)
         step = max(1, self.pool_size // 8)
@@ -111,8 +121,12 @@ class SceneStream:
             else:
                 pool = self.renders or self.cutouts
                 tree = pool[int(rng.integers(len(pool)))]
-            imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size,
-                                             background=bgs[int(rng.integers(len(bgs)))])
+            if self.photo_fraction and rng.random() < self.photo_fraction:
+                bg = photo_background(self.photos[int(rng.integers(len(self.photos)))], rng, size=self.size,
+                                      blur=(3.0, 8.0))
+            else:
+                bg = bgs[int(rng.integers(len(bgs)))]
+            imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size, background=bg)
         return imgs, labs
 
 

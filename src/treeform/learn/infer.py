@@ -15,7 +15,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError, ModelError
 
-__all__ = ["WEIGHTS", "weights_path", "Segmenter", "load_session", "main_tree", "predict_species", "predict_rbv"]
+__all__ = ["WEIGHTS", "weights_path", "Segmenter", "load_session", "main_tree", "focus_map", "predict_species", "predict_rbv"]
 
 WEIGHTS = {"seg": "seg.onnx", "species": "species.onnx", "rbv": "rbv.onnx"}
 """File name of each network's shipped weights."""
@@ -62,12 +62,34 @@ def _components(mask: np.ndarray):
     return n, lab, stats
 
 
-def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002) -> np.ndarray:
+def focus_map(image: np.ndarray, side: int = 320) -> np.ndarray:
+    """(H, W) float32 local sharpness of an RGB image: |Laplacian| of its grey at ``side`` px.
+
+    A photographed tree is in focus; trees behind it are often not. Measured at the
+    network's working size so that JPEG noise and the photo's resolution matter little.
+    """
+    import cv2
+
+    img = np.asarray(image)
+    H, W = img.shape[:2]
+    s = min(1.0, side / max(H, W))
+    g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    if s < 1.0:
+        g = cv2.resize(g, (max(8, round(W * s)), max(8, round(H * s))), interpolation=cv2.INTER_AREA)
+    lap = np.abs(cv2.Laplacian(g, cv2.CV_32F, ksize=1))
+    return cv2.resize(lap, (W, H), interpolation=cv2.INTER_LINEAR) if s < 1.0 else lap
+
+
+def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarray | None = None) -> np.ndarray:
     """The main tree of a binary tree mask: its largest connected part plus the parts beside it.
 
-    A crown seen through sky gaps falls apart into pieces; pieces that overlap the largest
+    A crown seen through sky gaps falls apart into pieces; pieces that overlap the main
     part's bounding box (grown by 10 %) and hold at least 1 % of its area are kept. Pieces
     smaller than ``min_fraction`` of the image are dropped as noise.
+
+    With ``focus`` (an (H, W) sharpness map, :func:`focus_map`) the main part is the one
+    with the largest area x (median sharpness)^2 instead of the largest area: an
+    out-of-focus tree behind the photographed one loses to it unless it is much larger.
 
     >>> m = np.zeros((20, 20), bool); m[2:15, 2:6] = True; m[5:8, 17:19] = True
     >>> int(main_tree(m).sum())
@@ -77,8 +99,15 @@ def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002) -> np.ndarray:
     n, lab, stats = _components(tree)
     if n <= 1:
         return np.zeros_like(tree)
-    areas = stats[1:, 4]
-    big = int(np.argmax(areas)) + 1
+    areas = stats[1:, 4].astype(np.float64)
+    score = areas
+    cand = np.flatnonzero(areas >= min_fraction * tree.size)
+    if focus is not None and len(cand) > 1:
+        focus = np.asarray(focus, np.float32)
+        score = np.zeros_like(areas)
+        for k in cand:  # the few parts large enough to be the tree
+            score[k] = areas[k] * float(np.median(focus[lab == k + 1])) ** 2
+    big = int(np.argmax(score)) + 1
     x, y, w, h, a = stats[big]
     gx, gy = 0.1 * w, 0.1 * h
     keep = np.zeros(n, bool)

@@ -44,7 +44,7 @@ def _torch():
 class SegTrainConfig:
     """Settings of ``treeform train seg`` (stored in the run's ``config.json``)."""
 
-    steps: int = 3200
+    steps: int = 2800
     """Optimiser steps."""
     batch: int = 16
     """Scenes per step."""
@@ -63,6 +63,8 @@ class SegTrainConfig:
     """Passes over each round's scenes (with flips) before the next round."""
     cutout_fraction: float = 0.35
     negatives: float = 0.08
+    photo_fraction: float = 0.2
+    """Share of scenes over an out-of-focus crop of a real photo (when ``photos`` are given)."""
     seed: int = 0
     checkpoint_every: int = 100
     threads: int = 0
@@ -121,7 +123,7 @@ def _sprites(data, cutouts, split: str):
     return renders, cuts
 
 
-def train_seg(data, out, *, test_data=None, cutouts=None, config: SegTrainConfig | None = None, progress=None,
+def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: SegTrainConfig | None = None, progress=None,
               **options) -> dict:
     """Train the segmentation network; resume from ``out/checkpoint.pt`` when present.
 
@@ -136,6 +138,9 @@ def train_seg(data, out, *, test_data=None, cutouts=None, config: SegTrainConfig
     cutouts : path, optional
         RGBA photo cut-outs; the 'train' side of :func:`~treeform.dataset.scenes.cutout_split`
         joins training, the 'test' side the test split.
+    photos : path, optional
+        Real photos; the 'train' side of :func:`~treeform.dataset.scenes.photo_split` serves
+        as out-of-focus backgrounds (the 'test' side is left to the real-texture benchmark).
     config : SegTrainConfig, optional
     progress : callable, optional
         ``progress(done, total, info)`` with ``info = {"loss", "images_per_s"}``.
@@ -155,8 +160,11 @@ def train_seg(data, out, *, test_data=None, cutouts=None, config: SegTrainConfig
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     renders, cuts = _sprites(data, cutouts, "train")
+    from treeform.dataset.scenes import load_photos
+
+    bg_photos = load_photos(photos, split="train") if photos is not None else []
     stream = SceneStream(renders, cuts, size=cfg.size, seed=cfg.seed, cutout_fraction=cfg.cutout_fraction,
-                         negatives=cfg.negatives)
+                         negatives=cfg.negatives, photos=bg_photos, photo_fraction=cfg.photo_fraction)
     torch.manual_seed(cfg.seed)
     model = SegNet(cfg.width)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -173,7 +181,8 @@ def train_seg(data, out, *, test_data=None, cutouts=None, config: SegTrainConfig
         if "torch_rng" in state:  # dropout draws continue where the killed run stopped
             torch.set_rng_state(state["torch_rng"])
     (out / "config.json").write_text(json.dumps({"network": "seg", "data": str(data), "test_data": str(test_data),
-                                                 "cutouts": str(cutouts), **asdict(cfg)}, indent=2))
+                                                 "cutouts": str(cutouts), "photos": str(photos), **asdict(cfg)},
+                                                indent=2))
     per_round = max(1, cfg.chunk * cfg.repeats // cfg.batch)
     model.train()
     t0, seen, loss_avg = time.perf_counter(), 0, None

@@ -115,7 +115,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: bool = True
     ModelError
         The weights file is missing or unreadable.
     """
-    from treeform.learn.infer import Segmenter, main_tree
+    from treeform.learn.infer import Segmenter, focus_map, main_tree
 
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -136,7 +136,8 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: bool = True
         if scale > 1.2:  # only when the photo is finer than the network's view
             ref = np.clip(guided_filter(guide, src, radius=max(2, int(round(2 * scale))), eps=2e-3), 0.0, 1.0)
             p_tree = ref if f == 1.0 else cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
-    tree = main_tree(p_tree > 0.5)
+    # the main tree: the largest part, weighted by sharpness (a blurred tree behind loses)
+    tree = main_tree(p_tree > 0.5, focus=focus_map(img, seg_net.side))
     if tree.mean() < MIN_TREE_FRACTION:
         raise NoTreeFoundError("no tree found in the photo")
     labels = np.where(tree, np.where(p[..., 2] > p[..., 1], 2, 1), 0).astype(np.uint8)
