@@ -29,14 +29,11 @@ SHARED = ROOT.parent / "shared" / "data"
 
 
 def composites(n: int, size: int, seed: int):
-    from PIL import Image
-
-    from treeform.dataset.scenes import load_cutouts, paste_on_photo, photo_split
+    from treeform.dataset.scenes import load_cutouts, load_photos, paste_on_photo
 
     sprites = load_cutouts(SHARED / "billboards", split="test")
-    # only the photos of the held-out side: the other side serves as training backgrounds
-    photos = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((SHARED / "photos").glob("*.jpg"))
-              if photo_split(p.name) == "test"]
+    # only the photos of the held-out side (full size): the other side serves as training backgrounds
+    photos = load_photos(SHARED / "photos", split="test", max_side=1 << 16)
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):

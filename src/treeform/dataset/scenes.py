@@ -93,8 +93,12 @@ def cutout_split(name: str, *, test_fraction: float = 0.25) -> str:
     """
     stem = Path(name).stem
     ident = stem.split("_row")[0] + "_col" + stem.rsplit("_col", 1)[-1] if "_row" in stem else stem
-    h = zlib.crc32(ident.encode()) % 1000
-    return "test" if h < test_fraction * 1000 else "train"
+    return _split_side(ident, test_fraction)
+
+
+def _split_side(ident: str, test_fraction: float) -> str:
+    """'test' for a fixed, machine-independent hash share ``test_fraction`` of identities, else 'train'."""
+    return "test" if zlib.crc32(ident.encode()) % 1000 < test_fraction * 1000 else "train"
 
 
 def photo_split(name: str, *, test_fraction: float = 0.35) -> str:
@@ -109,9 +113,7 @@ def photo_split(name: str, *, test_fraction: float = 0.35) -> str:
     """
     stem = Path(name).stem.lower()
     head, _, tail = stem.rpartition("_")
-    ident = head if head and tail.isdigit() else stem
-    h = zlib.crc32(ident.encode()) % 1000
-    return "test" if h < test_fraction * 1000 else "train"
+    return _split_side(head if head and tail.isdigit() else stem, test_fraction)
 
 
 def load_photos(folder, *, split: str | None = None, max_side: int = 1024) -> list[np.ndarray]:
@@ -148,15 +150,15 @@ def photo_background(photo: np.ndarray, rng, *, size: int, blur: tuple = (2.0, 6
     """An out-of-focus background from a real photo: a random square crop, scaled and blurred.
 
     The crop covers at least half the photo's short side; ``blur`` is the range of the
-    Gaussian sigma in pixels at a 512-px frame (scaled to ``size``), the depth of field
-    behind a photographed tree. Returns (size, size, 3) uint8.
+    Gaussian sigma in pixels at ``size``, the depth of field behind a photographed tree.
+    Returns (size, size, 3) uint8.
     """
     S = int(size)
     H, W = photo.shape[:2]
     side = int(min(H, W) * rng.uniform(0.5, 1.0))
     y, x = int(rng.integers(0, H - side + 1)), int(rng.integers(0, W - side + 1))
     bg = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
-    sigma = rng.uniform(*blur) * S / 512.0
+    sigma = rng.uniform(*blur)
     return np.clip(np.rint(cv2.GaussianBlur(bg.astype(np.float32), (0, 0), sigma)), 0, 255).astype(np.uint8)
 
 
@@ -490,7 +492,7 @@ def paste_on_photo(sprite: Sprite, photo: np.ndarray, rng, *, size: int = 512,
     (size, size) bool (coverage >= 1/2).
     """
     S = int(size)
-    img = photo_background(photo, rng, size=S, blur=tuple(b * 512.0 / S for b in blur)).astype(np.float32) / 255.0
+    img = photo_background(photo, rng, size=S, blur=blur).astype(np.float32) / 255.0
     lab = np.zeros((S, S), np.uint8)
     rgba = sprite.rgba.astype(np.float32) / 255.0
     hpx = S * rng.uniform(0.4, 0.95)

@@ -123,7 +123,7 @@ class SceneStream:
                 tree = pool[int(rng.integers(len(pool)))]
             if self.photo_fraction and rng.random() < self.photo_fraction:
                 bg = photo_background(self.photos[int(rng.integers(len(self.photos)))], rng, size=self.size,
-                                      blur=(3.0, 8.0))
+                                      blur=(3.0 * self.size / 512, 8.0 * self.size / 512))
             else:
                 bg = bgs[int(rng.integers(len(bgs)))]
             imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size, background=bg)
