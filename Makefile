@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 VALIDATOR := tools/node_modules/gltf-validator/package.json
 
-.PHONY: demo test bench weights sysdeps validator clean
+.PHONY: demo test bench weights sysdeps validator blender clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,12 @@ validator:
 	@if command -v npm >/dev/null 2>&1; then \
 	  [ -f $(VALIDATOR) ] || npm ci --prefix tools --no-audit --no-fund --loglevel=error; \
 	else echo "npm not found: the glTF validator test will be skipped"; fi
+
+# Blender as a Python module (pins its own numpy: a separate venv) for the GLB-in-Blender test and renders
+BLENDER_PY := .venv-blender/bin/python
+blender:
+	@[ -x $(BLENDER_PY) ] && $(BLENDER_PY) -c "import bpy" 2>/dev/null || \
+	  { $(PYTHON) -m venv .venv-blender && $(BLENDER_PY) -m pip install -q bpy; }
 
 demo: $(STAMP) sysdeps
 	$(VENV)/bin/treeform demo --out out/demo

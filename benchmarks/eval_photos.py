@@ -1,5 +1,5 @@
 """Quality on real photos: reconstruct every photo of ../shared/data/photos with a given isolation
-rating and report reprojection error, IoU and depth/width. Writes out/eval/<name>/ and a summary.
+rating and report reprojection error, IoU, depth/width, front SSIM and colour distance. Writes out/eval/<name>/ and a summary.
 
 Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--out out/eval]`
 """
@@ -39,9 +39,11 @@ def main():
             print(f"{stem:32s} FAILED: {exc}")
             continue
         m = res.metrics
-        rows[stem] = {k: m[k] for k in ("reprojection_error", "iou", "depth_width_ratio", "total_seconds")}
+        rows[stem] = {k: m[k] for k in ("reprojection_error", "iou", "depth_width_ratio", "front_ssim",
+                                        "front_color_distance", "stems_at_5_percent", "total_seconds")}
         print(f"{stem:32s} err {100 * m['reprojection_error']:5.1f} %  IoU {m['iou']:.3f}  "
-              f"depth/width {m['depth_width_ratio']:.2f}  {m['total_seconds']:.2f} s")
+              f"depth/width {m['depth_width_ratio']:.2f}  SSIM {m['front_ssim']:.3f}  "
+              f"colour {m['front_color_distance']:.3f}  stems {m['stems_at_5_percent']}  {m['total_seconds']:.2f} s")
     ok = [r for r in rows.values() if "error" not in r]
     errs = [r["reprojection_error"] for r in ok]
     dws = [r["depth_width_ratio"] for r in ok]
@@ -49,6 +51,9 @@ def main():
                "median_reprojection_error": statistics.median(errs) if errs else None,
                "worst_reprojection_error": max(errs) if errs else None,
                "median_iou": statistics.median(r["iou"] for r in ok) if ok else None,
+               "median_front_ssim": statistics.median(r["front_ssim"] for r in ok) if ok else None,
+               "one_stem": sum(r["stems_at_5_percent"] == 1 for r in ok),
+               "median_front_color_distance": statistics.median(r["front_color_distance"] for r in ok) if ok else None,
                "depth_width_min": min(dws) if dws else None, "depth_width_max": max(dws) if dws else None,
                "per_photo": rows}
     (out / f"summary_{args.rating}.json").write_text(json.dumps(summary, indent=1))

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from treeform._shared.errors import InputError
-from treeform.crown.envelope import bilaplacian_solve, inflate_envelope, silhouette_sets
+from treeform.crown.envelope import bilaplacian_solve, inflate_envelope, side_profile, silhouette_sets
 from treeform.crown.relief import relief_map
 
 
@@ -78,3 +78,46 @@ def test_relief_brighter_is_higher_and_normalised():
     h = relief_map(img, m, levels=5)
     assert h.min() >= 0 and h.max() <= 1 and h.max() - h.min() > 0.9
     assert h[:, 40:].mean() > h[:, :24].mean() + 0.3
+
+
+def _diamond(r=40):
+    """A rhombus 2r tall, 1.6r wide (not at 45°: a 45° staircase outline inflates flat)."""
+    yy, xx = np.mgrid[: 2 * r + 20, : 2 * r + 20]
+    return 0.8 * np.abs(yy - r - 10) + np.abs(xx - r - 10) < 0.8 * r
+
+
+def _side_depth(env):
+    """Half-depth of the envelope per input row (its side silhouette), from the vertices."""
+    v = env.vertices
+    rows = np.round(v[:, 1]).astype(int)
+    out = np.zeros(rows.max() + 1)
+    np.maximum.at(out, rows, v[:, 2])
+    return out
+
+
+def test_rounded_profile_has_no_ridge_where_the_front_is_widest():
+    m = _diamond()
+    thin = _side_depth(inflate_envelope(m, k=None, grid_size=80))
+    rnd = _side_depth(inflate_envelope(m, k=None, grid_size=80, profile="rounded"))
+    mid = 50
+    # both as deep at the widest row (depth = width) ...
+    assert abs(rnd[mid] - thin[mid]) < 0.1 * thin[mid]
+    # ... but the rounded one stays full away from it (a diamond from the side would halve
+    # at half the height): a crown, not a ridge
+    assert rnd[mid - 20] > 0.6 * rnd[mid] and thin[mid - 20] < rnd[mid - 20] - 0.1 * rnd[mid]
+    # still tapering to the top and bottom, and smooth (no kink at the widest row)
+    assert rnd[mid - 38] < 0.6 * rnd[mid] and rnd[mid + 38] < 0.6 * rnd[mid]
+    second = np.abs(np.diff(rnd[mid - 30:mid + 31], 2))
+    assert second.max() < 0.2 * rnd[mid] / 10
+
+
+def test_side_profile_follows_the_hull_for_conical_crowns():
+    m = _diamond()
+    hull = side_profile(m, crown="conical")
+    rnd = side_profile(m)
+    assert np.isclose(hull.max(), 31.5, atol=1.0)
+    core = slice(20, 81)  # the rounded blend is fuller than the straight flanks, except at the very ends
+    assert (rnd[core] >= hull[core] - 0.05 * hull.max()).all() and rnd[30] > hull[30] + 3
+    assert rnd[0] == 0 and hull[0] == 0  # no crown, no depth
+    with pytest.raises(InputError):
+        inflate_envelope(m, profile="blob")

@@ -177,14 +177,14 @@ def _assert_colours_match(shown: np.ndarray, colours: np.ndarray, *, mean_tol: f
 
 
 def test_reconstructed_tree_obj_shows_the_photo_leaf_colours(tmp_path):
-    """The envelope method colours each leaf from the photo (a wide spread of greens); the
-    OBJ's leaf atlas, sampled through each card's UVs, shows those colours."""
+    """With procedural cards the envelope method colours each leaf from the photo (a wide
+    spread of greens); the OBJ's leaf atlas, sampled through each card's UVs, shows those colours."""
     from treeform import reconstruct
     from treeform.geometry.textures import BARK_TEXTURE_SIZE, LEAF_TEXTURE_SIZE
 
     photo = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
     res = reconstruct(photo, out=tmp_path / "t", seed=0, max_size=320, attractors=3000, leaves=1500,
-                      rdm_resolution=128, lod="low")  # low: thinner bark; every leaf still fits
+                      rdm_resolution=128, lod="low", leaf_texture="procedural")  # low: thinner bark
     out = tmp_path / "t"
     leaf_tex = read_glb_textures(out / "tree.glb")["leaves"]
     bark_tex = read_glb_textures(out / "tree.glb")["bark"]
@@ -197,6 +197,31 @@ def test_reconstructed_tree_obj_shows_the_photo_leaf_colours(tmp_path):
     shown = _obj_card_colours(out / "tree.obj", leaf_tex)
     assert len(shown) == len(res.foliage)
     _assert_colours_match(shown, colours, mean_tol=0.03, p95_tol=0.08)
+
+
+def test_photo_textured_tree_obj_shares_the_glb_atlas_and_card_rectangles(tmp_path):
+    """Photo-textured cards carry their look in the atlas (no vertex colours to bake): the OBJ
+    writes the GLB's atlas as it is, and every card's UVs span exactly its own tile."""
+    from treeform import reconstruct
+
+    photo = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    res = reconstruct(photo, out=tmp_path / "t", seed=0, max_size=320, attractors=3000, leaves=1500,
+                      rdm_resolution=128, lod="low")
+    from PIL import Image
+
+    atlas = read_glb_textures(tmp_path / "t" / "tree.glb")["leaves"]
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "t" / "tree_leaves.png")), atlas)
+    rect = res.foliage.uv
+    assert rect is not None and len(rect) == len(res.foliage)
+    vt = np.array([[float(x) for x in line.split()[1:3]] for line in
+                   (tmp_path / "t" / "tree.obj").read_text().splitlines() if line.startswith("vt ")])
+    # OBJ's v runs up: the card corners are the rectangles' corners, v flipped
+    corners = np.concatenate([rect[:, [0, 1]], rect[:, [2, 3]], rect[:, [0, 3]], rect[:, [2, 1]]])
+    corners[:, 1] = 1.0 - corners[:, 1]
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(corners).query(vt[-4 * len(rect):])
+    assert d.max() < 1e-4
 
 
 def test_grown_tree_obj_shows_the_leaf_colours(tmp_path):

@@ -55,12 +55,25 @@ def test_reconstruction_matches_the_photo(run):
     sk = res.skeleton
     assert np.allclose(sk.positions[0], 0) and sk.order[0] == 0
     assert sk.radius[0] == sk.radius.max()
-    # leaves take the photo's colours: mean leaf colour close to the mean foliage colour
+    # leaves wear the photo: the opaque texels of the leaf atlas have the foliage's mean colour,
+    # and the front view reproduces the photo's crown (structure and colours)
     photo_mean = res.photo.image[res.segmentation.foliage_mask].mean(0) / 255
-    assert np.abs(res.foliage.color.mean(0) - photo_mean).max() < 0.08
+    atlas = next(p for p in res.mesh.parts if p.name == "leaves").material.texture
+    assert np.abs(atlas[atlas[..., 3] > 127][:, :3].mean(0) / 255 - photo_mean).max() < 0.08
+    assert m["front_ssim"] > 0.4 and m["front_color_distance"] < 0.3, m
+    assert m["stems_at_5_percent"] == 1
     # every leaf and attractor-grown node lies inside the crown's RDM (with a card's tolerance)
     inside = res.rdm.contains(res.foliage.positions)
     assert inside.mean() > 0.97
+
+
+def test_photo_textured_leaves_beat_procedural_cards_on_the_front_view(run):
+    res, _ = run
+    proc = reconstruct(SAMPLE, seed=0, leaf_texture="procedural", **FAST).metrics
+    # the photo's own crown texture, not one drawn cluster tinted per card: far closer in structure
+    assert res.metrics["front_ssim"] > proc["front_ssim"] + 0.2
+    assert res.metrics["front_color_distance"] < proc["front_color_distance"]
+    assert proc["leaves"] == res.metrics["leaves"]
 
 
 def test_preview_labels_every_panel_and_shows_the_whole_tree(run):

@@ -68,10 +68,16 @@ def test_configs_check_the_new_options():
 def test_conical_reconstruct_gets_needles(tmp_path):
     from treeform import reconstruct
 
-    res = reconstruct(SAMPLE, out=tmp_path / "t", seed=0, max_size=320, attractors=3000, leaves=1500,
-                      rdm_resolution=128, lod="low", crown="conical")
-    tex = read_glb_textures(tmp_path / "t" / "tree.glb")
+    opts = dict(seed=0, max_size=320, attractors=3000, leaves=1500, rdm_resolution=128, lod="low", crown="conical")
+    reconstruct(SAMPLE, out=tmp_path / "p", leaf_texture="procedural", **opts)
+    tex = read_glb_textures(tmp_path / "p" / "tree.glb")
     np.testing.assert_array_equal(tex["leaves"], leaf_texture(tex["leaves"].shape[0], seed=0, kind="needles"))
+    # photo-textured: the photo's crown in needle-cluster outlines (sparser than broadleaf ones)
+    res = reconstruct(SAMPLE, out=tmp_path / "t", **opts)
+    round_ = reconstruct(SAMPLE, **{**opts, "crown": "round"})
+    def opaque(r):
+        return float((next(p for p in r.mesh.parts if p.name == "leaves").material.texture[..., 3] > 127).mean())
+    assert opaque(res) < 0.8 * opaque(round_)
     # the sparser needle cards are made larger, so the crown still fills the photo's silhouette
     assert res.metrics["reprojection_error"] < 0.2
     assert json.loads((tmp_path / "t" / "config.json").read_text())["config"]["foliage"] == "auto"

@@ -10,7 +10,6 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.io import read_glb_counts
 from treeform.methods import METHODS
 from treeform.methods.learned.pipeline import STAGES, reconstruct
-from treeform.structures import TreeSkeleton
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"

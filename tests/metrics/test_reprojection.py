@@ -25,3 +25,22 @@ def test_extent_ratio():
     side = np.zeros_like(front)
     side[10:40, 35:65] = True
     assert extent_ratio(side, front, percentile=0) == pytest.approx(0.5)
+
+
+def test_color_distance_sees_colours_not_arrangement():
+    from treeform.metrics import color_distance
+
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 256, (40, 40, 3)).astype(np.uint8)
+    shuffled = a.reshape(-1, 3)[rng.permutation(1600)].reshape(40, 40, 3)
+    assert color_distance(a, shuffled) < 0.01
+    assert color_distance(a, a // 2) > 0.3  # darker: other colours
+    mask = np.zeros((40, 40), bool)
+    mask[:20] = True
+    b = a.copy()
+    b[20:] = 0
+    assert color_distance(a, b, mask) < 1e-9 < color_distance(a, b)
+    with pytest.raises(InputError):
+        color_distance(a, a, np.zeros((40, 40), bool))
+    with pytest.raises(InputError):
+        color_distance(a[..., 0], a[..., 0])

@@ -81,6 +81,21 @@ def test_npz_round_trips(tmp_path):
     assert back.n_triangles == 1 and back.parts[0].material.alpha_mode == "MASK"
 
 
+def test_foliage_texture_rectangles_survive_subsets_and_files(tmp_path):
+    f = Foliage(np.zeros((3, 3)), [[0, 0, 1]] * 3, [[0, 1, 0]] * 3, [0.1, 0.2, 0.3], [[0.1, 0.5, 0.1]] * 3,
+                uv=[[0, 0, 0.5, 0.5], [0.5, 0, 1, 0.5], [0, 0.5, 0.5, 1]])
+    sub = f.subset(np.array([False, True, True]))
+    np.testing.assert_array_equal(sub.uv, f.uv[1:])
+    f.save(tmp_path / "f.npz")
+    np.testing.assert_array_equal(Foliage.load(tmp_path / "f.npz").uv, f.uv)
+    np.testing.assert_array_equal(f.with_colors(np.ones((3, 3))).uv, f.uv)
+    assert Foliage(np.zeros((1, 3)), [[0, 0, 1]], [[0, 1, 0]], [0.1], [[0, 0, 0]]).subset([0]).uv is None
+    with pytest.raises(InputError, match="uv"):
+        Foliage(np.zeros((1, 3)), [[0, 0, 1]], [[0, 1, 0]], [0.1], [[0, 0, 0]], uv=[[0, 0, 2, 1]])
+    with pytest.raises(InputError, match="uv"):
+        Foliage(np.zeros((2, 3)), [[0, 0, 1]] * 2, [[0, 1, 0]] * 2, [0.1] * 2, [[0, 0, 0]] * 2, uv=[[0, 0, 1, 1]])
+
+
 def test_segmentation_validation():
     with pytest.raises(InputError):
         Segmentation(np.full((2, 2), 3, np.uint8))

@@ -155,8 +155,59 @@ def _tangent_height(shape, mask, crown: str, k: float, a: float) -> np.ndarray:
     return np.repeat(f[:, None], shape[1], axis=1)
 
 
+def side_profile(mask: np.ndarray, *, crown: str = "round") -> np.ndarray:
+    """The half-depth a crown of this silhouette has at each row, seen from the side (pixels).
+
+    The front silhouette's convex hull gives each row's half-width h(y) (a crown's side is
+    about as wide as its front, without the gaps and lobes of the outline). For a round
+    crown this, smoothed over a tenth of the crown's height, is blended (geometric mean) with
+    an ellipse as wide as the widest row, centred
+    on that row and reaching the crown's top and bottom, so the side view is a rounded crown
+    that still tapers where the front does (a pointed top stays pointed) — not the ridge the thin-plate depth puts where the
+    front is widest. A conical crown keeps the hull's straight flanks.
+
+    Parameters
+    ----------
+    mask : ndarray, shape (H, W), bool
+        Crown silhouette.
+    crown : {"round", "conical"}
+
+    Returns
+    -------
+    ndarray, shape (H,)
+        Half-depth per row (0 on rows without crown).
+
+    Examples
+    --------
+    >>> m = np.zeros((41, 41), bool); m[5:36, 10:31] = True  # a 21-pixel-wide box
+    >>> d = side_profile(m)
+    >>> float(d[20]), float(d[0]), bool(d[6] < d[20])
+    (10.5, 0.0, True)
+    """
+    from skimage.morphology import convex_hull_image
+
+    mask = check_array(mask, "mask", ndim=2).astype(bool)
+    check_choice(crown, "crown", ("round", "conical"))
+    if not mask.any():
+        return np.zeros(mask.shape[0])
+    hull = 0.5 * convex_hull_image(mask).sum(axis=1).astype(np.float64)
+    if crown == "conical":
+        return hull
+    rows = np.flatnonzero(hull > 0)
+    top, bottom = rows.min() - 0.5, rows.max() + 0.5
+    # no kink where the front is widest: the hull's half-width, smoothed over a tenth of the crown
+    widest_half = hull.max()
+    hull = np.where(hull > 0, ndi.gaussian_filter1d(hull, 0.1 * (bottom - top), mode="constant"), 0.0)
+    hull *= widest_half / max(hull.max(), 1e-9)  # as deep as the front is wide, smoothing or not
+    widest = float(np.mean(np.flatnonzero(hull >= 0.98 * hull.max())))
+    y = np.arange(mask.shape[0], dtype=np.float64)
+    t = np.where(y < widest, (widest - y) / max(widest - top, 1.0), (y - widest) / max(bottom - widest, 1.0))
+    ellipse = hull.max() * np.sqrt(np.clip(1.0 - t**2, 0.0, 1.0))
+    return np.where(hull > 0, np.sqrt(hull * ellipse), 0.0)
+
+
 def inflate_envelope(mask: np.ndarray, *, crown: str = "round", k: float | None = 6.0, a: float = 3.0,
-                     grid_size: int = 128, depth_ratio: float | None = None) -> Envelope:
+                     grid_size: int = 128, depth_ratio: float | None = None, profile: str = "thin-plate") -> Envelope:
     """Inflate a crown silhouette into a closed envelope mesh (seed 001 §3.2).
 
     Parameters
@@ -178,6 +229,11 @@ def inflate_envelope(mask: np.ndarray, *, crown: str = "round", k: float | None 
         the result is returned in the input's pixel units.
     depth_ratio : float, optional
         Target depth / width of the envelope when ``k`` is None (default 1: round).
+    profile : {"thin-plate", "rounded"}
+        "thin-plate": the depth of §3.2 as solved. "rounded": each row of the solution is
+        rescaled so its deepest point lies on :func:`side_profile` (times ``depth_ratio``
+        when ``k`` is None), keeping the thin-plate's shape across the row: the side view
+        becomes a rounded crown instead of a ridge where the front is widest.
 
     Returns
     -------
@@ -192,6 +248,7 @@ def inflate_envelope(mask: np.ndarray, *, crown: str = "round", k: float | None 
     """
     mask = check_array(mask, "mask", ndim=2).astype(bool)
     check_choice(crown, "crown", ("round", "conical"))
+    check_choice(profile, "profile", ("thin-plate", "rounded"))
     if k is None:
         depth_ratio = 1.0 if depth_ratio is None else check_positive(depth_ratio, "depth_ratio")
         k_solve = 6.0
@@ -229,7 +286,13 @@ def inflate_envelope(mask: np.ndarray, *, crown: str = "round", k: float | None 
     known[outer, 2] = -f[ni[outer], nj[outer]]
     sol = bilaplacian_solve(interior, known)
     z = np.where(g, np.maximum(sol[..., 2], 0.0), 0.0)
-    if k is None and z.max() > 0:
+    if profile == "rounded" and z.max() > 0:
+        target = side_profile(g, crown=crown) * (1.0 if depth_ratio is None else depth_ratio)
+        if k is not None:  # the user's tangent sets the depth; the profile only its shape
+            target *= z.max() / max(target.max(), 1e-9)
+        row_max = z.max(axis=1)
+        z *= np.where(row_max > 1e-9, target / np.maximum(row_max, 1e-9), 0.0)[:, None]
+    elif k is None and z.max() > 0:
         width = sol[..., 0][g].max() - sol[..., 0][g].min() + 1
         z *= depth_ratio * width / (2 * z.max())
     # grid -> input pixel coordinates (pixel centres)

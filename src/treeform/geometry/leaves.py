@@ -16,7 +16,7 @@ from treeform.geometry.textures import LEAF_TEXTURE_SIZE
 from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, MeshPart
 
-__all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "leaf_cards", "leaf_material", "leaf_texture", "texture_coverage"]
+__all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "card_frames", "leaf_cards", "leaf_material", "leaf_texture", "texture_coverage"]
 
 TEXTURE_KINDS = ("cluster", "leaf", "needles", "scales")
 """Kinds of :func:`leaf_texture`: a broadleaf cluster, one leaf, a needle cluster, a scale spray."""
@@ -265,6 +265,39 @@ def leaf_material(texture=None, *, seed=0) -> Material:
 
 
 # --------------------------------------------------------------------------- cards
+def card_frames(foliage: Foliage) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each card's unit normal, in-plane up and right (``up × normal``) vectors, as :func:`leaf_cards` builds them.
+
+    ``up`` is the foliage's up vector orthogonalised against the normal (any in-plane
+    direction where the two are parallel).
+
+    Returns
+    -------
+    normal, up, right : ndarray, shape (M, 3)
+
+    Examples
+    --------
+    >>> f = Foliage([[0, 1, 0]], [[0, 0, 2]], [[0, 1, 1]], [0.2], [[0.2, 0.5, 0.1]])
+    >>> [a.round(3).tolist() for a in card_frames(f)]
+    [[[0.0, 0.0, 1.0]], [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]]]
+    """
+    m = len(foliage)
+    n = foliage.normals.astype(np.float64)
+    nl = np.linalg.norm(n, axis=1, keepdims=True)
+    if m and np.any(nl < 1e-12):
+        raise InputError("foliage.normals: contains a zero-length normal")
+    n = n / np.where(nl > 0, nl, 1.0)
+    up = foliage.up - np.sum(foliage.up * n, axis=1, keepdims=True) * n
+    ul = np.linalg.norm(up, axis=1, keepdims=True)
+    bad = ul[:, 0] < 1e-9
+    if np.any(bad):  # up parallel to the normal: any in-plane direction will do
+        ref = np.where(np.abs(n[bad, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+        up[bad] = ref - np.sum(ref * n[bad], axis=1, keepdims=True) * n[bad]
+        ul[bad] = np.linalg.norm(up[bad], axis=1, keepdims=True)
+    up = up / ul
+    return n, up, np.cross(up, n)
+
+
 def leaf_cards(foliage: Foliage, *, texture=None, size_scale: float = 1.0) -> MeshPart:
     """One textured square quad per leaf.
 
@@ -272,7 +305,8 @@ def leaf_cards(foliage: Foliage, *, texture=None, size_scale: float = 1.0) -> Me
     (orthogonalized against the normal) and ``right = up × normal`` (the span of
     ``normal × up``, oriented so the texture reads unmirrored from the front), with edge length
     ``foliage.size[i] * size_scale``. Triangles wind counter-clockwise seen from the normal
-    side. UV (0, 0) is the top-left of the texture (glTF), at ``-right + up``.
+    side. UV (0, 0) is the top-left of the texture (glTF), at ``-right + up``; with
+    ``foliage.uv`` each card spans its own rectangle of the texture (an atlas) instead.
 
     Parameters
     ----------
@@ -304,26 +338,17 @@ def leaf_cards(foliage: Foliage, *, texture=None, size_scale: float = 1.0) -> Me
     if scale.ndim not in (0, 1) or (scale.ndim == 1 and len(scale) != m) or not np.all(np.isfinite(scale)) \
             or np.any(scale <= 0):
         raise InputError(f"size_scale: expected a positive number or an array of {m} positive numbers")
-    n = foliage.normals.astype(np.float64)
-    nl = np.linalg.norm(n, axis=1, keepdims=True)
-    if m and np.any(nl < 1e-12):
-        raise InputError("foliage.normals: contains a zero-length normal")
-    n = n / np.where(nl > 0, nl, 1.0)
-    up = foliage.up - np.sum(foliage.up * n, axis=1, keepdims=True) * n
-    ul = np.linalg.norm(up, axis=1, keepdims=True)
-    bad = ul[:, 0] < 1e-9
-    if np.any(bad):  # up parallel to the normal: any in-plane direction will do
-        ref = np.where(np.abs(n[bad, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
-        up[bad] = ref - np.sum(ref * n[bad], axis=1, keepdims=True) * n[bad]
-        ul[bad] = np.linalg.norm(up[bad], axis=1, keepdims=True)
-    up = up / ul
-    right = np.cross(up, n)
+    n, up, right = card_frames(foliage)
     half = (0.5 * foliage.size * scale)[:, None]
     c = foliage.positions
     # corners: 0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left
     pos = np.stack([c - half * right - half * up, c + half * right - half * up,
                     c + half * right + half * up, c - half * right + half * up], axis=1)
-    uv = np.broadcast_to(np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], np.float32), (m, 4, 2))
+    if foliage.uv is None:
+        uv = np.broadcast_to(np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], np.float32), (m, 4, 2))
+    else:  # each card its own rectangle (u0, v0, u1, v1) of an atlas
+        r = foliage.uv
+        uv = np.stack([r[:, [0, 3]], r[:, [2, 3]], r[:, [2, 1]], r[:, [0, 1]]], axis=1)
     nrm = np.broadcast_to(n[:, None, :], (m, 4, 3))
     col = np.empty((m, 4, 4), np.float32)
     col[..., :3] = foliage.color[:, None, :]

@@ -103,7 +103,7 @@ def plan_lod(chain_lengths, chain_radius, n_leaves: int, *, max_triangles=None, 
 
 
 def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=None, radial_segments: int = 8,
-              leaf_texture=None, bark_texture=None, seed=0) -> Mesh:
+              leaf_texture=None, bark_texture=None, bark_normal=None, seed=0) -> Mesh:
     """The tree as a :class:`Mesh`: a ``"bark"`` part (tubes) and a ``"leaves"`` part (cards).
 
     With ``max_triangles`` the total triangle count is guaranteed not to exceed it; when the
@@ -127,6 +127,9 @@ def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=
     bark_texture : ndarray, shape (H, W, 4), uint8, optional
         Default ``bark_texture(512, seed=0)``; :func:`~treeform.geometry.tree_textures` sizes
         both textures for a tree.
+    bark_normal : ndarray, shape (H, W, 4), uint8, optional
+        Normal map of ``bark_texture`` (:func:`~treeform.geometry.textures.bark_normals`); the
+        default texture brings its own.
     seed : int or numpy.random.Generator
         Selects the kept leaves and the default leaf texture; same seed -> identical mesh.
 
@@ -162,12 +165,11 @@ def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=
     keep = plan["keep_chains"]
     root_flags = np.arange(len(chains)) == 0
     bark = _tubes._tubes(skeleton, [c for c, k in zip(chains, keep) if k], root_flags[keep],
-                         plan["radial_segments"], cap_starts=False, material=_tubes.bark_material(bark_texture))
+                         plan["radial_segments"], cap_starts=False, material=_tubes.bark_material(bark_texture, bark_normal))
     parts = [bark] if bark.n_triangles else []
     kept = plan["keep_leaves"]
     if kept.any():
-        sub = foliage if kept.all() else Foliage(foliage.positions[kept], foliage.normals[kept], foliage.up[kept],
-                                                 foliage.size[kept], foliage.color[kept], foliage.node[kept])
+        sub = foliage if kept.all() else foliage.subset(kept)
         tex = leaf_texture if leaf_texture is not None else \
             _leaves._default_leaf(_leaves.LEAF_TEXTURE_SIZE, tex_seed, "cluster").copy()
         parts.append(_leaves.leaf_cards(sub, texture=tex, size_scale=plan["leaf_scale"]))

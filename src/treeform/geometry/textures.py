@@ -20,7 +20,7 @@ from treeform.structures.foliage import Foliage
 from treeform.structures.skeleton import TreeSkeleton
 
 __all__ = ["BARK_TEXTURE_SIZE", "FOLIAGE_KINDS", "LEAF_TEXTURE_SIZE", "MAX_AUTO_TEXTURE_SIZE", "TEXELS_PER_METRE",
-           "foliage_coverage", "foliage_texture_kind", "texture_sizes", "tree_textures"]
+           "bark_normals", "foliage_coverage", "foliage_texture_kind", "texture_sizes", "tree_textures"]
 
 FOLIAGE_KINDS = ("broadleaf", "needles", "scales")
 """Foliage kinds: broadleaf clusters, pine-like needle clusters, thuja-like scale sprays."""
@@ -143,3 +143,23 @@ def tree_textures(skeleton: TreeSkeleton, foliage: Foliage | None = None, *, fol
         raise InputError(f"seed: expected an integer, got {seed!r}")
     bark_size, leaf_size = texture_sizes(skeleton, foliage, texture_size=texture_size)
     return _tubes._default_bark(bark_size, int(seed)).copy(), _leaves._default_leaf(leaf_size, int(seed), kind).copy()
+
+
+def bark_normals(bark: np.ndarray, *, seed=0) -> np.ndarray:
+    """The normal map of the bark texture :func:`tree_textures` made (its size, this seed).
+
+    Examples
+    --------
+    >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0.]]), np.array([-1, 0]), np.array([0.1, 0.05]))
+    >>> bark, _ = tree_textures(s)
+    >>> bark_normals(bark).shape == bark.shape
+    True
+    """
+    from treeform.geometry import tubes as _tubes
+
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise InputError(f"seed: expected an integer, got {seed!r}")
+    bark = np.asarray(bark)
+    if bark.ndim != 3 or bark.shape[0] != bark.shape[1]:
+        raise InputError(f"bark: expected a square (N, N, 4) texture, got shape {bark.shape}")
+    return _tubes._default_bark_normal(int(bark.shape[0]), int(seed)).copy()

@@ -60,6 +60,15 @@ def bark_texture(size: int = BARK_TEXTURE_SIZE, *, seed=0) -> np.ndarray:
     >>> t.shape, t.dtype, int(t[..., 3].min())
     ((32, 32, 4), dtype('uint8'), 255)
     """
+    col, _ = _bark_fields(size, seed)
+    out = np.empty((int(size), int(size), 4), np.uint8)
+    out[..., :3] = np.clip(np.rint(col * 255.0), 0, 255).astype(np.uint8)
+    out[..., 3] = 255
+    return out
+
+
+def _bark_fields(size, seed) -> tuple[np.ndarray, np.ndarray]:
+    """The bark's linear-ish colour (size, size, 3) and relief height (size, size) in [0, 1]."""
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 8:
         raise InputError(f"size: expected an integer >= 8, got {size!r}")
     size = int(size)
@@ -82,8 +91,42 @@ def bark_texture(size: int = BARK_TEXTURE_SIZE, *, seed=0) -> np.ndarray:
     col = plate_dark + (plate_light - plate_dark) * light[..., None]
     col *= (1.0 + 0.07 * grain)[..., None]
     col = col * (1.0 - fissure[..., None]) + fissure_col * fissure[..., None]
-    out = np.empty((size, size, 4), np.uint8)
-    out[..., :3] = np.clip(np.rint(col * 255.0), 0, 255).astype(np.uint8)
+    height = np.clip(relief * (1.0 - fissure) + 0.05 * grain, 0.0, 1.0)
+    return col, height
+
+
+def bark_normal_map(size: int = BARK_TEXTURE_SIZE, *, seed=0, strength: float = 2.0) -> np.ndarray:
+    """The tangent-space normal map of :func:`bark_texture` (same size and seed): fissures and plates in relief.
+
+    Normals come from the relief height's periodic gradients (so the map tiles like the
+    texture), X along the texture's columns (around the branch), Y up the texture (along it),
+    in glTF's convention (RGB = (n + 1) / 2).
+
+    Parameters
+    ----------
+    size : int
+    seed : int or numpy.random.Generator
+    strength : float
+        Height of the relief in texels per unit of height (steeper with more).
+
+    Returns
+    -------
+    ndarray, shape (size, size, 4), uint8
+
+    Examples
+    --------
+    >>> n = bark_normal_map(32)
+    >>> n.shape, bool(n[..., 2].min() > 128)  # every normal leaves the surface
+    ((32, 32, 4), True)
+    """
+    _, height = _bark_fields(size, seed)
+    hh = height * float(strength) * size / 64.0  # relief in texels: the same look at every size
+    dx = 0.5 * (np.roll(hh, -1, axis=1) - np.roll(hh, 1, axis=1))
+    dy = 0.5 * (np.roll(hh, 1, axis=0) - np.roll(hh, -1, axis=0))  # rows grow down; +Y is up
+    n = np.stack([-dx, -dy, np.ones_like(hh)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    out = np.empty((int(size), int(size), 4), np.uint8)
+    out[..., :3] = np.clip(np.rint((n + 1.0) * 127.5), 0, 255).astype(np.uint8)
     out[..., 3] = 255
     return out
 
@@ -95,16 +138,30 @@ def _default_bark(size: int, seed: int) -> np.ndarray:
     return t
 
 
-def bark_material(texture=None) -> Material:
-    """The ``"bark"`` material: opaque, the procedural bark texture (512², seed 0) unless one is given."""
+@functools.lru_cache(maxsize=4)
+def _default_bark_normal(size: int, seed: int) -> np.ndarray:
+    t = bark_normal_map(size, seed=seed)
+    t.flags.writeable = False
+    return t
+
+
+def bark_material(texture=None, normal_texture=None) -> Material:
+    """The ``"bark"`` material: opaque, the procedural bark texture (512², seed 0) unless one is given.
+
+    ``normal_texture``: a tangent-space normal map for the texture (the default texture
+    comes with its own, :func:`bark_normal_map`).
+    """
     if texture is None:
         texture = _default_bark(BARK_TEXTURE_SIZE, 0).copy()
+        if normal_texture is None:
+            normal_texture = _default_bark_normal(BARK_TEXTURE_SIZE, 0).copy()
     else:
         texture = np.asarray(texture)
         if texture.ndim != 3 or texture.shape[2] != 4 or texture.dtype != np.uint8:
             raise InputError(f"bark_texture: expected an (H, W, 4) uint8 array, got {texture.shape} {texture.dtype}")
     return Material(name="bark", base_color=(1.0, 1.0, 1.0, 1.0), texture=texture, alpha_mode="OPAQUE",
-                    alpha_cutoff=0.5, double_sided=False, roughness=0.95, metallic=0.0)
+                    alpha_cutoff=0.5, double_sided=False, roughness=0.95, metallic=0.0,
+                    normal_texture=None if normal_texture is None else np.asarray(normal_texture))
 
 
 # --------------------------------------------------------------------------- quaternions

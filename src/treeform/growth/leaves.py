@@ -114,7 +114,7 @@ def color_leaves(foliage: Foliage, pixels: np.ndarray, visible: np.ndarray, imag
     if shade is not None:
         hidden = hidden * np.clip(shade, 0, 1)[:, None]
     color = np.where(np.asarray(visible, bool)[:, None], front, hidden)
-    return Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size, np.clip(color, 0, 1), foliage.node)
+    return foliage.with_colors(np.clip(color, 0, 1))
 
 
 def twig_nodes(skeleton: TreeSkeleton, twig_tips: int = 4) -> np.ndarray:
@@ -214,5 +214,4 @@ def twig_foliage(skeleton: TreeSkeleton, *, leaf_color, size: float, leaves: int
     center = 0.5 * (lo + hi)
     foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=twig_tips, seed=rng)
     radius = 0.5 * float(np.linalg.norm(hi - lo))
-    return Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size,
-                   _species_colors(foliage, leaf_color, center, radius, rng), foliage.node)
+    return foliage.with_colors(_species_colors(foliage, leaf_color, center, radius, rng))

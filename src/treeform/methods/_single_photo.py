@@ -3,7 +3,8 @@
 - :func:`load_photo` — a path / array / Photo reduced to a working size, and an optional user mask;
 - :func:`segment_or_mask` — the automatic segmentation, or the user's mask labelled;
 - :func:`photo_camera` — the camera that took the photo, in a world where the trunk base is the origin;
-- :func:`render_previews` — front, side and top renders framed on the tree (also ``treeform grow``'s).
+- :func:`render_previews` — front, side and top renders framed on the tree (also ``treeform grow``'s);
+- :func:`photo_metrics` — how the renders agree with the photo (silhouette, depth, colour, structure).
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform.structures import Camera, Photo
 
-__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "render_previews"]
+__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "render_previews",
+           "photo_metrics"]
 
 
 def as_photo(photo, max_size: int) -> Photo:
@@ -125,3 +127,47 @@ def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: 
     finally:
         renderer.release()
     return renders
+
+
+def photo_metrics(renders: dict, photo_camera: Camera, image: np.ndarray, tree_mask: np.ndarray) -> dict:
+    """How the reconstruction's renders agree with the photo it came from.
+
+    The photo's frame is cut from the widened front render (:func:`treeform.report.photo_window`);
+    where the render is empty the photo shows through, so the colour figures judge the tree
+    pixels only.
+
+    Parameters
+    ----------
+    renders : dict
+        :func:`render_previews` with ``front=photo_camera``.
+    photo_camera : Camera
+    image : ndarray, shape (H, W, 3), uint8
+        The photo.
+    tree_mask : ndarray, shape (H, W), bool
+        The segmentation's tree pixels.
+
+    Returns
+    -------
+    dict
+        ``reprojection_error`` (seed 004 eq. 3) and ``iou`` of the front silhouette against
+        ``tree_mask``; ``depth_width_ratio`` (side extent over front extent); ``front_ssim``
+        (mean SSIM inside ``tree_mask``) and ``front_color_distance`` (Hellinger distance of
+        the RGB histograms inside ``tree_mask``, 0 = same colours) of the front render
+        against the photo.
+    """
+    from treeform.metrics import color_distance, extent_ratio, iou, reprojection_error, ssim
+    from treeform.report import photo_window
+
+    window = photo_window(renders["front"].camera, photo_camera)
+    front = renders["front"]
+    mask = front.mask[window]
+    shown = np.where(mask[..., None], front.color[window][..., :3], image)
+    tree = np.asarray(tree_mask, bool)
+    has_tree = bool(tree.any())
+    return {
+        "reprojection_error": reprojection_error(mask, tree),
+        "iou": iou(mask, tree),
+        "depth_width_ratio": extent_ratio(renders["side"].mask, front.mask),
+        "front_ssim": round(ssim(shown, image, tree), 4) if has_tree else 0.0,
+        "front_color_distance": round(color_distance(shown, image, tree), 4) if has_tree else 1.0,
+    }

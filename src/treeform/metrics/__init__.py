@@ -1,10 +1,10 @@
-"""Metrics: reprojection error (seed 004 eq. 3), IoU, crown proportions, PSNR and SSIM."""
+"""Metrics: reprojection error (seed 004 eq. 3), IoU, crown proportions, PSNR, SSIM, colour distance."""
 
-from treeform.metrics.image import psnr, ssim
+from treeform.metrics.image import color_distance, psnr, ssim
 from treeform.metrics.reprojection import extent_ratio, iou, reprojection_error
 from treeform.metrics.segmentation import class_iou, confusion_matrix, tree_iou
 
-__all__ = ["reprojection_error", "iou", "extent_ratio", "psnr", "ssim", "class_iou", "confusion_matrix", "tree_iou"]
+__all__ = ["reprojection_error", "iou", "extent_ratio", "psnr", "ssim", "color_distance", "class_iou", "confusion_matrix", "tree_iou"]
 
 # tree-form metrics of seed 003 §6
 from treeform.metrics.treeform_metrics import (  # noqa: E402
@@ -17,6 +17,7 @@ from treeform.metrics.treeform_metrics import (  # noqa: E402
     max_radial_trunk_distance,
     mesh_metrics,
     metric_vector,
+    stems_at,
     tree_height,
     tree_metrics,
     trunk_diameter,
@@ -32,6 +33,7 @@ __all__ += [
     "max_radial_trunk_distance",
     "mesh_metrics",
     "metric_vector",
+    "stems_at",
     "tree_height",
     "tree_metrics",
     "trunk_diameter",

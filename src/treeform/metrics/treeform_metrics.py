@@ -233,6 +233,42 @@ def trunk_diameter(skeleton: TreeSkeleton, *, at: float = 0.0) -> float:
     raise InputError(f"at: {at} m is above the trunk's top ({y.max():.3f} m above the base)")
 
 
+def stems_at(skeleton: TreeSkeleton, *, fraction: float = 0.05) -> int:
+    """Number of separate branches crossing the horizontal plane at ``fraction`` of the tree's height.
+
+    A tree with one trunk has 1 (a rope of strands converging at the ground, or several
+    stems, count more). Edges are the skeleton's parent links; the plane lies at
+    ``y_root + fraction · tree_height``; an edge crosses it when its two ends lie on
+    opposite sides (an end exactly on it counts as above).
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    fraction : float in (0, 1)
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0], [0, 2, 0], [1, 0.5, 0]]), np.array([-1, 0, 1, 2]))
+    >>> stems_at(s, fraction=0.05), stems_at(s, fraction=0.5)
+    (1, 2)
+    """
+    s = _check_skeleton(skeleton)
+    fraction = float(fraction)
+    if not 0.0 < fraction < 1.0:
+        raise InputError(f"fraction: expected a number in (0, 1), got {fraction!r}")
+    if s.n_nodes < 2:
+        return 0
+    plane = s.positions[0, 1] + fraction * tree_height(s)
+    child = np.flatnonzero(s.parent >= 0)
+    below_a = s.positions[s.parent[child], 1] < plane
+    below_b = s.positions[child, 1] < plane
+    return int(np.count_nonzero(below_a != below_b))
+
+
 def biomass(skeleton: TreeSkeleton) -> float:
     """Total branch volume in m³ (seed 003 §6: "the total volume of all branches").
 

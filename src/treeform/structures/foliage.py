@@ -28,6 +28,9 @@ class Foliage:
         Linear-ish RGB tint of each card (multiplies the leaf texture).
     node : ndarray, shape (M,), int64
         Skeleton node the leaf hangs on (-1 if none).
+    uv : ndarray, shape (M, 4), float32, optional
+        Each card's rectangle ``(u0, v0, u1, v1)`` in its texture (glTF: v = 0 at the top),
+        for cards that share a texture atlas; None: every card spans the whole texture.
     """
 
     positions: np.ndarray
@@ -36,6 +39,7 @@ class Foliage:
     size: np.ndarray
     color: np.ndarray
     node: np.ndarray | None = None
+    uv: np.ndarray | None = None
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, np.float64).reshape(-1, 3)
@@ -45,6 +49,8 @@ class Foliage:
         self.size = np.ascontiguousarray(self.size, np.float64).reshape(-1)
         self.color = np.ascontiguousarray(self.color, np.float32).reshape(-1, 3)
         self.node = np.full(m, -1, np.int64) if self.node is None else np.ascontiguousarray(self.node, np.int64).reshape(-1)
+        if self.uv is not None:
+            self.uv = np.ascontiguousarray(self.uv, np.float32).reshape(-1, 4)
         self.validate()
 
     def __len__(self) -> int:
@@ -55,19 +61,41 @@ class Foliage:
         z = np.zeros((0, 3))
         return cls(z, z, z, np.zeros(0), z)
 
+    def subset(self, index) -> "Foliage":
+        """The leaves selected by ``index`` (a boolean mask or integer indices), in that order.
+
+        Examples
+        --------
+        >>> f = Foliage(np.zeros((3, 3)), [[0, 0, 1.]] * 3, [[0, 1, 0.]] * 3, [0.1, 0.2, 0.3], np.zeros((3, 3)))
+        >>> f.subset([2, 0]).size.tolist()
+        [0.3, 0.1]
+        """
+        i = np.asarray(index)
+        return Foliage(self.positions[i], self.normals[i], self.up[i], self.size[i], self.color[i], self.node[i],
+                       None if self.uv is None else self.uv[i])
+
+    def with_colors(self, color, uv=None) -> "Foliage":
+        """The same cards with new tints (and, if given, new texture rectangles)."""
+        return Foliage(self.positions, self.normals, self.up, self.size, color, self.node,
+                       self.uv if uv is None else uv)
+
     def validate(self) -> None:
         m = len(self.positions)
-        for name in ("normals", "up", "size", "color", "node"):
+        names = ("normals", "up", "size", "color", "node") + (("uv",) if self.uv is not None else ())
+        for name in names:
             if len(getattr(self, name)) != m:
                 raise InputError(f"Foliage.{name}: length {len(getattr(self, name))} != {m} leaves")
         if m and (np.any(self.size <= 0) or not np.all(np.isfinite(self.positions))):
             raise InputError("Foliage: sizes must be positive and positions finite")
         if m and (self.color.min() < 0 or self.color.max() > 1):
             raise InputError("Foliage.color: values must lie in [0, 1]")
+        if m and self.uv is not None and (not np.all(np.isfinite(self.uv)) or self.uv.min() < 0 or self.uv.max() > 1):
+            raise InputError("Foliage.uv: texture rectangles must lie in [0, 1]")
 
     def save(self, path):
+        extra = {} if self.uv is None else {"uv": self.uv}
         return save_npz(path, "Foliage", positions=self.positions, normals=self.normals, up=self.up,
-                        size=self.size, color=self.color, node=self.node)
+                        size=self.size, color=self.color, node=self.node, **extra)
 
     @classmethod
     def load(cls, path) -> "Foliage":

@@ -31,6 +31,10 @@ class EnvelopeConfig:
     the k that makes the envelope ``depth_ratio`` times as deep as it is wide."""
     depth_ratio: float = 1.0
     """Envelope depth / width when ``tangent_k`` is None (1 = a round crown from the side)."""
+    profile: str = "rounded"
+    """Side profile of the envelope: 'rounded' (each row as deep as a rounded crown of the
+    front's size: :func:`treeform.crown.envelope.side_profile`) or 'thin-plate' (the depth of
+    seed 001 §3.2 as solved, deepest where the front is widest)."""
     conical_a: float = 3.0
     """Quadratic coefficient a of the conical tangent function."""
     envelope_grid: int = 128
@@ -67,6 +71,10 @@ class EnvelopeConfig:
     foliage: str = "auto"
     """What the leaf cards show: 'broadleaf' clusters, pine-like 'needles', thuja-like 'scales';
     'auto': needles for a conical crown, else broadleaf."""
+    leaf_texture: str = "photo"
+    """Leaf-card texture: 'photo' (each card a tile cut from the photo's crown where the card
+    projects, in a leaf-cluster outline; see :func:`treeform.crown.photo_leaf_atlas`) or
+    'procedural' (one drawn cluster tinted by the photo's colour at the card)."""
     texture_size: int | None = None
     """Bark texture edge N in texels (leaves get N/2); None: from the tree's size (at least 512,
     leaves 256; see :func:`treeform.geometry.texture_sizes`)."""
@@ -78,6 +86,8 @@ class EnvelopeConfig:
         check_choice(self.lod, "lod", ("low", "medium", "high", "full"))
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         check_choice(self.foliage, "foliage", ("auto", "broadleaf", "needles", "scales"))
+        check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
+        check_choice(self.profile, "profile", ("rounded", "thin-plate"))
         if self.texture_size is not None:
             check_int(self.texture_size, "texture_size", 16, 8192)
         if self.tangent_k is not None:

@@ -58,6 +58,11 @@ def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -
     """World nodes every ``seg_len`` metres along the traced trunk (base at the origin)."""
     pts = _pixels_to_world(cam, mpp, np.column_stack([path_px, np.zeros(len(path_px))]))
     pts[0] = 0.0
+    return _trunk_nodes_along(pts, seg_len)
+
+
+def _trunk_nodes_along(pts: np.ndarray, seg_len: float) -> np.ndarray:
+    """Nodes every ``seg_len`` metres along a polyline (K, 3)."""
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     if s[-1] <= 0:
@@ -108,7 +113,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         from treeform.crown.envelope import inflate_envelope
 
         env = inflate_envelope(layout.crown_mask, crown=cfg.crown, k=cfg.tangent_k, a=cfg.conical_a,
-                               grid_size=cfg.envelope_grid, depth_ratio=cfg.depth_ratio)
+                               grid_size=cfg.envelope_grid, depth_ratio=cfg.depth_ratio,
+                               profile=cfg.profile)
         world_verts = _pixels_to_world(cam, mpp, env.vertices)
     with timer.stage("relief"):
         from treeform.crown.relief import relief_map
@@ -150,12 +156,22 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
 
         seg_len = cfg.segment_length * r_mean
         trunk = _trunk_nodes(cam, mpp, layout.trunk_path, seg_len)
+        tree_h = cfg.tree_height  # the photo's tree spans this many metres (photo_camera)
+        if trunk[-1, 1] < 0.1 * tree_h:  # no visible trunk (hidden by shrubs): a straight one to the crown
+            top = max(0.15 * tree_h, float(np.percentile(attractors[:, 1], 5)) if len(attractors) else 0.0)
+            trunk = _trunk_nodes_along(np.array([[0.0, 0.0, 0.0], [0.0, top, 0.0]]), seg_len)
         n_trunk = len(trunk)
-        # the bole carries no branches: only its top fifth may sprout (the rest is clear stem)
-        growable = np.linspace(0, 1, n_trunk) >= 0.8
+        # one stem at the ground: no branch wood in the lowest tenth (leaves may hang there);
+        # the trunk sprouts from its top fifth and wherever the crown reaches down beside it,
+        # so low crown parts get short limbs off the trunk instead of strands growing down along it
+        attractors = attractors[attractors[:, 1] >= 0.1 * tree_h]
+        crown_low = float(attractors[:, 1].min()) if len(attractors) else float(trunk[-1, 1])
+        growable = (np.linspace(0, 1, n_trunk) >= 0.8) | (trunk[:, 1] >= max(crown_low - seg_len, 0.1 * tree_h))
         sc = space_colonization(attractors, trunk, influence_radius=cfg.influence * r_mean,
                                 kill_distance=cfg.kill_factor * seg_len, segment_length=seg_len, growable=growable)
-        trunk_radius = max(layout.trunk_width * mpp / 2, 0.02)
+        # the photo's trunk width, within what trees grow: a radius of 0.2-6 % of the height
+        # (wood around the base -- a fence, a bush labelled wood -- reads far too wide)
+        trunk_radius = float(np.clip(layout.trunk_width * mpp / 2, max(0.002 * tree_h, 0.02), 0.06 * tree_h))
         n_tips = max(1, int((np.bincount(sc.parent[1:], minlength=len(sc.parent)) == 0).sum()))
         tip_r = max(trunk_radius / n_tips ** (1 / cfg.pipe_exponent), 0.002)
         radius = pipe_model_radii(sc.parent, tip_radius=tip_r, exponent=cfg.pipe_exponent)
@@ -200,15 +216,29 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             visible = uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)
             d = foliage.positions - center
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
-            foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
+            if cfg.leaf_texture == "procedural":  # the photo is the texture otherwise (mesh stage)
+                foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
+        from treeform.geometry.textures import bark_normals
 
         bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=cfg.foliage_kind(),
                                            texture_size=cfg.texture_size, seed=cfg.seed)
+        if cfg.leaf_texture == "photo" and len(foliage):
+            from treeform.crown.photo_leaves import photo_leaf_atlas
+            from treeform.geometry.textures import foliage_texture_kind
+
+            from treeform.segment.matting import sky_gaps
+
+            # foliage alpha from the photo (sky seen through the crown left out), softened by a
+            # pixel so tile edges are antialiased
+            alpha = ndi.gaussian_filter((leaf_mask & ~sky_gaps(image, seg, ratio=3.0)) * seg.alpha, 0.6)
+            leaf_tex, foliage = photo_leaf_atlas(foliage.with_colors(np.ones((len(foliage), 3))), cam, image, alpha,
+                                                 visible=visible, shade=np.where(visible, 1.0, shade),
+                                                 kind=foliage_texture_kind(cfg.foliage_kind()), seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
-                         seed=cfg.seed)
+                         bark_normal=bark_normals(bark_tex, seed=cfg.seed), seed=cfg.seed)
         wood = seg.wood_mask
         if wood.sum() > 20:
             tint = np.median(image[wood], axis=0) / 255.0
@@ -218,8 +248,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                     f = np.clip(tint / np.maximum(tex_mean, 1e-3), 0.2, 3.0)
                     part.material.base_color = (float(min(f[0], 1)), float(min(f[1], 1)), float(min(f[2], 1)), 1.0)
     with timer.stage("render"):
-        from treeform.metrics import extent_ratio, iou, reprojection_error
-        from treeform.metrics.treeform_metrics import crown_extents, tree_height
+        from treeform.metrics.treeform_metrics import crown_extents, stems_at, tree_height
+        from treeform.methods._single_photo import photo_metrics
         from treeform.render import Lighting
         from treeform.report import photo_window, preview_strip
 
@@ -229,11 +259,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         # the front view is the photo's camera, widened to show the whole tree; side shares its scale
         renders = render_previews(mesh, front=cam, lighting=light)
         window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
-        front_mask = renders["front"].mask[window]
         metrics = {
-            "reprojection_error": reprojection_error(front_mask, seg.tree_mask),
-            "iou": iou(front_mask, seg.tree_mask),
-            "depth_width_ratio": extent_ratio(renders["side"].mask, renders["front"].mask),
+            **photo_metrics(renders, cam, image, seg.tree_mask),
             "nodes": skeleton.n_nodes,
             "tips": int(len(skeleton.tips())),
             "leaves": len(foliage),
@@ -244,6 +271,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             "photo_size": [width, height],
             "metres_per_pixel": mpp,
             "tree_height_m": tree_height(skeleton),
+            "stems_at_5_percent": stems_at(skeleton, fraction=0.05),
             **crown_extents(skeleton),
         }
         preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)

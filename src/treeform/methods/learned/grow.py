@@ -226,12 +226,14 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         skeleton.meta["n_leaves"] = len(foliage)  # so `treeform metrics` on the files reports the count
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
+        from treeform.geometry.textures import bark_normals
 
         kind = look.leaf_type if cfg.foliage == "auto" else cfg.foliage
         bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=kind, texture_size=cfg.texture_size,
                                            seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
-                         leaf_texture=leaf_tex, bark_texture=bark_tex, seed=cfg.seed)
+                         leaf_texture=leaf_tex, bark_texture=bark_tex,
+                         bark_normal=bark_normals(bark_tex, seed=cfg.seed), seed=cfg.seed)
     renders, preview = {}, None
     if previews:
         with timer.stage("render"):

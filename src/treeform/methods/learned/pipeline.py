@@ -117,19 +117,16 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
     for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage
         timer.timings[k] = grown.metrics["timings"].get(k, 0.0)
     with timer.stage("render"):
-        from treeform.metrics import extent_ratio, iou, reprojection_error
         from treeform.metrics.treeform_metrics import crown_extents, tree_height
+        from treeform.methods._single_photo import photo_metrics
         from treeform.methods.learned.grow import preview_lighting
         from treeform.report import photo_window, preview_strip
 
         # the front view is the photo's camera, widened to show the whole tree; side shares its scale
         renders = render_previews(mesh, front=cam, lighting=preview_lighting())
         window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
-        front = renders["front"].mask[window]
         metrics = {
-            "reprojection_error": reprojection_error(front, seg.tree_mask),
-            "iou": iou(front, seg.tree_mask),
-            "depth_width_ratio": extent_ratio(renders["side"].mask, renders["front"].mask),
+            **photo_metrics(renders, cam, image, seg.tree_mask),
             "species": species,
             "species_predicted": next(iter(probs)),
             "species_probabilities": {k: round(v, 4) for k, v in probs.items()},

@@ -1,0 +1,107 @@
+"""Leaf cards textured with the photo's own crown: the atlas reproduces the photo from its camera."""
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError
+from treeform.crown.photo_leaves import photo_leaf_atlas
+from treeform.structures import Camera, Foliage
+
+CAM = Camera(96, 96, 40.0, (0.0, 0.0, 10.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+
+
+def _photo(seed=0):
+    """A textured 'crown' photo: smooth colour waves plus fine noise, alpha a disc."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:96, :96]
+    img = np.stack([128 + 90 * np.sin(xx / 6.0), 128 + 90 * np.cos(yy / 5.0), 128 + 60 * np.sin((xx + yy) / 9.0)],
+                   axis=-1)
+    img = np.clip(img + rng.normal(0, 6, img.shape), 0, 255).astype(np.uint8)
+    alpha = ((yy - 48) ** 2 + (xx - 48) ** 2 < 36**2).astype(np.float32)
+    return img, alpha
+
+
+def _cards(n, *, tilt=0.0, seed=0):
+    """n cards on the z = 0 plane (in front of the camera), tilted by ``tilt`` about random in-plane axes."""
+    rng = np.random.default_rng(seed)
+    pos = np.column_stack([rng.uniform(-1.6, 1.6, (n, 2)), rng.uniform(-0.5, 0.5, n)])
+    normal = np.tile([0.0, 0.0, 1.0], (n, 1))
+    if tilt:
+        axis = rng.normal(size=(n, 3))
+        axis[:, 2] = 0
+        axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+        normal = np.cos(tilt) * normal + np.sin(tilt) * np.cross(axis, normal)
+    up = rng.normal(size=(n, 3))
+    return Foliage(pos, normal, up, np.full(n, 0.6), np.ones((n, 3)))
+
+
+def _render(foliage, atlas):
+    from treeform.geometry import leaf_cards
+    from treeform.render import Lighting, Renderer
+    from treeform.structures import Mesh
+
+    unlit = Lighting(key=(0.0, 0.0, 0.0), sky=(1.0, 1.0, 1.0), ground=(1.0, 1.0, 1.0))
+    renderer = Renderer(CAM, samples=1, lighting=unlit)
+    try:
+        return renderer.render(Mesh([leaf_cards(foliage, texture=atlas)]))
+    finally:
+        renderer.release()
+
+
+def test_front_render_reproduces_the_photo_through_the_cards():
+    img, alpha = _photo()
+    atlas, f = photo_leaf_atlas(_cards(300), CAM, img, alpha, tile=32, detail=0.0, seed=0)
+    res = _render(f, atlas)
+    inner = res.mask & (alpha > 0)
+    assert inner.sum() > 0.5 * (alpha > 0).sum()
+    err = np.abs(res.color[..., :3].astype(float) - img.astype(float))[inner]
+    assert np.median(err) < 12  # texel-for-pixel: the photo, resampled once
+    # nothing drawn outside the photo's crown: the cards are cut by the photo's alpha
+    assert (res.mask & (alpha == 0)).mean() < 0.01
+    # the photo shifted by half a colour wave gives a different render (the test can fail)
+    other = np.roll(img, 19, axis=1)
+    atlas2, f2 = photo_leaf_atlas(_cards(300), CAM, other, alpha, tile=32, detail=0.0, seed=0)
+    err2 = np.abs(_render(f2, atlas2).color[..., :3].astype(float) - img.astype(float))[inner]
+    assert np.median(err2) > 3 * np.median(err)
+
+
+def test_tilted_cards_still_show_their_part_of_the_photo():
+    img, alpha = _photo()
+    atlas, f = photo_leaf_atlas(_cards(300, tilt=0.9), CAM, img, alpha, tile=32, detail=0.0, seed=0)
+    res = _render(f, atlas)
+    inner = res.mask & (alpha > 0)
+    err = np.abs(res.color[..., :3].astype(float) - img.astype(float))[inner]
+    assert np.median(err) < 20
+
+
+def test_tiles_shading_sharing_and_determinism():
+    img, alpha = _photo()
+    cards = _cards(50)
+    a1, f1 = photo_leaf_atlas(cards, CAM, img, alpha, seed=3)
+    a2, f2 = photo_leaf_atlas(cards, CAM, img, alpha, seed=3)
+    np.testing.assert_array_equal(a1, a2)
+    np.testing.assert_array_equal(f1.uv, f2.uv)
+    assert len(np.unique(f1.uv, axis=0)) == 50  # one tile per card
+    assert (f1.uv[:, 2] > f1.uv[:, 0]).all() and (f1.uv[:, 3] > f1.uv[:, 1]).all()
+    # shading is baked into the card's own tile
+    dark, _ = photo_leaf_atlas(cards, CAM, img, alpha, shade=np.full(50, 0.5), seed=3)
+    op = a1[..., 3] > 127
+    ratio = dark[..., :3][op].astype(float).mean() / a1[..., :3][op].astype(float).mean()
+    assert 0.45 < ratio < 0.55
+    # past max_tiles the hidden cards borrow the tiles of visible ones
+    vis = np.arange(50) < 20
+    _, fs = photo_leaf_atlas(cards, CAM, img, alpha, visible=vis, max_tiles=20, seed=3)
+    assert len(np.unique(fs.uv, axis=0)) == 20
+    assert np.isin(fs.uv[~vis].view([("", fs.uv.dtype)] * 4), fs.uv[vis].view([("", fs.uv.dtype)] * 4)).all()
+
+
+def test_bad_inputs_are_one_line_errors():
+    img, alpha = _photo()
+    with pytest.raises(InputError, match="alpha"):
+        photo_leaf_atlas(_cards(3), CAM, img, alpha[:10])
+    with pytest.raises(InputError, match="kind"):
+        photo_leaf_atlas(_cards(3), CAM, img, alpha, kind="fern")
+    with pytest.raises(InputError, match="shade"):
+        photo_leaf_atlas(_cards(3), CAM, img, alpha, shade=[2.0, 1.0, 1.0])
+    atlas, f = photo_leaf_atlas(Foliage.empty(), CAM, img, alpha)
+    assert len(f) == 0 and atlas.shape[2] == 4
