@@ -1,7 +1,7 @@
 """Quality on real photos: reconstruct every photo of ../shared/data/photos with a given isolation
 rating and report reprojection error, IoU, depth/width, front SSIM and colour distance. Writes out/eval/<name>/ and a summary.
 
-Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--out out/eval]`
+Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--segmenter learned] [--out out/eval]`
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ def main():
     ap.add_argument("--rating", default="isolated")
     ap.add_argument("--out", default=str(ROOT / "out" / "eval"))
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--segmenter", default=None, help="classical | learned (default: the method's)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -33,7 +34,8 @@ def main():
     for name in sorted(names):
         stem = Path(name).stem
         try:
-            res = reconstruct(PHOTOS / name, out=out / stem, seed=args.seed)
+            opts = {"segmenter": args.segmenter} if args.segmenter else {}
+            res = reconstruct(PHOTOS / name, out=out / stem, seed=args.seed, **opts)
         except TreeformError as exc:
             rows[stem] = {"error": str(exc)}
             print(f"{stem:32s} FAILED: {exc}")

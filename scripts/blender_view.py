@@ -135,7 +135,7 @@ def _render(scene, lo, hi, args) -> dict:
     world = bpy.data.worlds.new("sky")
     world.use_nodes = True
     bg = world.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (0.78, 0.85, 1.0, 1.0)
+    bg.inputs["Color"].default_value = (0.86, 0.88, 0.92, 1.0)  # an overcast sky, barely blue
     bg.inputs["Strength"].default_value = 0.9
     scene.world = world
     sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))

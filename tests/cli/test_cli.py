@@ -132,6 +132,16 @@ def test_reconstruct_cli_happy_path(tmp_path):
     assert (out / "tree.glb").stat().st_size > 10_000
 
 
+def test_leaf_texture_option(tmp_path):
+    out = tmp_path / "p"
+    proc = cli("reconstruct", SAMPLE, "--out", out, "--leaves", "1000", "--lod", "low", "--leaf-texture", "procedural")
+    assert proc.returncode == 0, proc.stderr
+    assert '"leaf_texture": "procedural"' in (out / "config.json").read_text()
+    bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "l", "--method", "learned", "--leaf-texture", "photo")
+    assert_clean_failure(bad, tmp_path / "l")
+    assert "--leaf-texture works with --method envelope" in bad.stderr
+
+
 def test_help_speaks_to_users():
     """Usage lines show PHOTO (not {PHOTO}), flags carry no <bool>, and no paper sections leak into help."""
     import re

@@ -121,6 +121,11 @@ def run_api(func, *args, stages=None, display=None, inputs=(), **kwargs):
         _fail("out of memory (try a smaller --lod or photo)", 1)
 
 
+class LeafTexture(str, Enum):
+    photo = "photo"
+    procedural = "procedural"
+
+
 class Method(str, Enum):
     envelope = "envelope"
     learned = "learned"
@@ -150,11 +155,17 @@ def reconstruct(
                                         help="Leaf cards: broadleaf, needles (pine) or scales (thuja); auto: "
                                              "envelope needles for --crown conical, learned the species'."),
     texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
+    leaf_texture: Optional[LeafTexture] = typer.Option(
+        None, "--leaf-texture", help="envelope: leaf cards wear the photo's own crown ('photo', default) or a drawn "
+                                     "cluster tinted with its colours ('procedural')."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
 
     if method is Method.learned:
+        if leaf_texture is not None:
+            typer.echo("error: --leaf-texture works with --method envelope", err=True)
+            raise typer.Exit(2)
         from treeform.methods.learned.pipeline import STAGES
         from treeform.methods.learned.pipeline import reconstruct as api
 
@@ -172,7 +183,8 @@ def reconstruct(
                       leaves=8000 if leaves is None else leaves, lod=lod.value,
                       tree_height=10.0 if height is None else height,
                       segmenter=(segmenter or SegmenterName.classical).value, foliage=foliage.value,
-                      texture_size=texture_size)
+                      texture_size=texture_size,
+                      leaf_texture=(leaf_texture or LeafTexture.photo).value)
     print_summary(res)
 
 

@@ -221,5 +221,4 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     x1 = ((col_i + 1) * tile - 0.5) / side
     y1 = ((row_i + 1) * tile - 0.5) / side
     rect = np.column_stack([x0, y0, x1, y1]).astype(np.float32)[tile_of]
-    return atlas, Foliage(foliage.positions, foliage.normals, foliage.up, foliage.size, foliage.color,
-                          foliage.node, rect)
+    return atlas, foliage.with_colors(foliage.color, uv=rect)

@@ -15,7 +15,7 @@ def _unit(v):
 
 
 def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float, center, twig_tips: int = 8,
-                  seed=None) -> Foliage:
+                  scatter: float = 0.9, seed=None) -> Foliage:
     """Hang leaf clusters at given positions on their nearest twigs (seed 001 §3.6).
 
     Twig nodes are those carrying at most ``twig_tips`` tips in their subtree (the
@@ -31,6 +31,9 @@ def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float,
         Mean card edge length in metres (each card varies by ±20 %).
     center : array_like, shape (3,)
         Crown centre.
+    scatter : float
+        Weight of the random direction added to the outward one in each normal (0: every
+        card faces straight out of the crown).
 
     Returns
     -------
@@ -64,7 +67,7 @@ def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float,
     _, j = cKDTree(skeleton.positions[twigs]).query(positions)
     anchor = twigs[j]
     center = np.asarray(center, np.float64)
-    normal = _unit(_unit(positions - center) + 0.9 * _unit(rng.normal(size=(n, 3))))
+    normal = _unit(_unit(positions - center) + float(scatter) * _unit(rng.normal(size=(n, 3))))
     up = _unit(np.cross(normal, _unit(rng.normal(size=(n, 3)))))
     s = size * rng.uniform(0.8, 1.2, n)
     color = np.tile(np.float32([0.25, 0.45, 0.15]), (n, 1))
