@@ -1,5 +1,6 @@
 """The treeform command: happy path and every bad input the issue lists (one-line error, exit != 0, no files)."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -140,6 +141,22 @@ def test_leaf_texture_option(tmp_path):
     bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "l", "--method", "learned", "--leaf-texture", "photo")
     assert_clean_failure(bad, tmp_path / "l")
     assert "--leaf-texture works with --method envelope" in bad.stderr
+
+
+def test_envelope_options_of_the_paper(tmp_path):
+    out = tmp_path / "k"
+    proc = cli("reconstruct", SAMPLE, "--out", out, "--leaves", "1000", "--lod", "low", "--k", "4",
+               "--profile", "thin-plate", "--rdm-rotations", "60,120", "--depth-ratio", "0.8")
+    assert proc.returncode == 0, proc.stderr
+    cfg = json.loads((out / "config.json").read_text())["config"]
+    assert cfg["tangent_k"] == 4 and cfg["profile"] == "thin-plate" and cfg["rdm_rotations"] == [60, 120]
+    assert cfg["depth_ratio"] == 0.8 and cfg["segment_length"] == 0.04
+    bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "b", "--rdm-rotations", "sixty")
+    assert_clean_failure(bad, tmp_path / "b")
+    both = cli("reconstruct", SAMPLE, "--out", tmp_path / "m", "--method", "learned", "--k", "3", "--profile",
+               "rounded")
+    assert_clean_failure(both, tmp_path / "m")
+    assert "--profile, --k work with --method envelope" in both.stderr
 
 
 def test_help_speaks_to_users():

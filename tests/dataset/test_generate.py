@@ -100,6 +100,8 @@ def test_partial_samples_survive_only_whole(tmp_path):
     (tmp_path / "partial" / "00000008.tar.tmp").write_bytes(b"x" * 700)  # killed mid-write
     partial_path(tmp_path, 9).write_bytes(partial_path(tmp_path, 7).read_bytes()[:1000])  # cut short
     assert partial_indices(tmp_path) == {7}
+    assert len(list((tmp_path / "partial").iterdir())) == 3  # watching a run deletes nothing of it
+    assert partial_indices(tmp_path, clean=True) == {7}
     assert sorted(p.name for p in (tmp_path / "partial").iterdir()) == ["00000007.tar"]
 
 

@@ -126,6 +126,16 @@ class LeafTexture(str, Enum):
     procedural = "procedural"
 
 
+class Profile(str, Enum):
+    rounded = "rounded"
+    thin_plate = "thin-plate"
+
+
+class Colonization(str, Enum):
+    coarse = "coarse"
+    paper = "paper"
+
+
 class Method(str, Enum):
     envelope = "envelope"
     learned = "learned"
@@ -158,13 +168,31 @@ def reconstruct(
     leaf_texture: Optional[LeafTexture] = typer.Option(
         None, "--leaf-texture", help="envelope: leaf cards wear the photo's own crown ('photo', default) or a drawn "
                                      "cluster tinted with its colours ('procedural')."),
+    profile: Optional[Profile] = typer.Option(
+        None, "--profile", help="envelope: crown side 'rounded' (default) or 'thin-plate' (paper's depth, deepest "
+                                "where the front is widest)."),
+    k: Optional[float] = typer.Option(None, "--k", min=0.01,
+                                      help="envelope: silhouette tangent length k of the paper (default: the k that "
+                                           "makes the crown as deep as --depth-ratio says)."),
+    depth_ratio: Optional[float] = typer.Option(None, "--depth-ratio", min=0.05, max=5.0,
+                                                help="envelope: crown depth / width (default 1)."),
+    rdm_rotations: Optional[str] = typer.Option(
+        None, "--rdm-rotations", metavar="DEG,DEG", help="envelope: extra copies of the envelope turned about the "
+                                                         "vertical axis, e.g. 60,120 (the RDM keeps the largest radius)."),
+    colonization: Optional[Colonization] = typer.Option(
+        None, "--colonization", help="envelope: space colonization 'coarse' (default: D = 0.04 r) or 'paper' "
+                                     "(full detail: d_k = 0.01 r, D = 0.5 d_k; slower, many more nodes)."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
 
+    envelope_only = {"--leaf-texture": leaf_texture, "--profile": profile, "--k": k, "--depth-ratio": depth_ratio,
+                     "--rdm-rotations": rdm_rotations, "--colonization": colonization}
     if method is Method.learned:
-        if leaf_texture is not None:
-            typer.echo("error: --leaf-texture works with --method envelope", err=True)
+        given = [name for name, v in envelope_only.items() if v is not None]
+        if given:
+            typer.echo(f"error: {', '.join(given)} work{'s' if len(given) == 1 else ''} with --method envelope",
+                       err=True)
             raise typer.Exit(2)
         from treeform.methods.learned.pipeline import STAGES
         from treeform.methods.learned.pipeline import reconstruct as api
@@ -179,12 +207,25 @@ def reconstruct(
         if species is not None:
             typer.echo("error: --species works with --method learned", err=True)
             raise typer.Exit(2)
+        from treeform.methods.envelope.config import COLONIZATION_PRESETS
+
+        try:
+            rotations = tuple(float(a) for a in rdm_rotations.split(",") if a.strip()) if rdm_rotations else ()
+        except ValueError:
+            typer.echo(f"error: --rdm-rotations: expected degrees like 60,120, got {rdm_rotations!r}", err=True)
+            raise typer.Exit(2) from None
+        extra = {"rdm_rotations": rotations, "tangent_k": k, **COLONIZATION_PRESETS[(colonization or
+                                                                                     Colonization.coarse).value]}
+        if depth_ratio is not None:
+            extra["depth_ratio"] = depth_ratio
+        if profile is not None:
+            extra["profile"] = profile.value
         res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, inputs=(photo, ("--mask", mask)),
                       leaves=8000 if leaves is None else leaves, lod=lod.value,
                       tree_height=10.0 if height is None else height,
                       segmenter=(segmenter or SegmenterName.classical).value, foliage=foliage.value,
                       texture_size=texture_size,
-                      leaf_texture=(leaf_texture or LeafTexture.photo).value)
+                      leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)
     print_summary(res)
 
 

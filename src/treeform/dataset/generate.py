@@ -223,7 +223,7 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
         (out / tmp).unlink(missing_ok=True)  # leftovers of a killed write
 
     res = GenerateResult(out=out, n=n)
-    stored = partial_indices(out)
+    stored = partial_indices(out, clean=True)
     pending: dict[str, dict] = {}
     for k in range(math.ceil(n / shard_size)):
         first, count = k * shard_size, min(shard_size, n - k * shard_size)

@@ -178,11 +178,13 @@ def read_partial(directory, index: int) -> dict:
     return samples[0]
 
 
-def partial_indices(directory) -> set[int]:
+def partial_indices(directory, *, clean: bool = False) -> set[int]:
     """Indices of the partial samples stored in ``DIR/partial`` (complete files only).
 
-    Leftovers of a killed write (``*.tmp``) and files that cannot be whole tars (size not a
-    positive multiple of 512 bytes) are deleted: those samples are simply made again.
+    With ``clean`` (a run starting, when no other run writes there), leftovers of a killed
+    write (``*.tmp``) and files that cannot be whole tars (size not a positive multiple of
+    512 bytes) are deleted: those samples are simply made again. Without it nothing is
+    touched, so a run in progress can be watched safely.
     """
     folder = Path(directory) / PARTIAL
     if not folder.is_dir():
@@ -196,7 +198,7 @@ def partial_indices(directory) -> set[int]:
             continue
         if stem is not None and stem.isdigit() and len(stem) == 8 and size >= 1024 and size % 512 == 0:
             found.add(int(stem))
-        elif p.name.endswith(".tmp") or stem is not None:
+        elif clean and (p.name.endswith(".tmp") or stem is not None):
             p.unlink(missing_ok=True)
     return found
 

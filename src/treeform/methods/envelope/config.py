@@ -10,6 +10,14 @@ from treeform._shared.errors import InputError
 
 
 
+COLONIZATION_PRESETS = {
+    "coarse": {"segment_length": 0.04, "kill_factor": 2.5},
+    "paper": {"segment_length": 0.005, "kill_factor": 2.0},
+}
+"""Space-colonization regimes: 'coarse' (treeform's default: D = 0.04 r, d_k = 0.1 r) and
+'paper' (seed 001 §3.6 at full detail: d_k = 0.01 r, D = 0.5 d_k), r the mean crown radius."""
+
+
 @dataclass
 class EnvelopeConfig:
     """Every knob of :func:`treeform.methods.envelope.pipeline.reconstruct`."""
