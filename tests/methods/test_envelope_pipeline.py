@@ -62,6 +62,11 @@ def test_reconstruction_matches_the_photo(run):
     assert np.abs(atlas[atlas[..., 3] > 127][:, :3].mean(0) / 255 - photo_mean).max() < 0.08
     assert m["front_ssim"] > 0.4 and m["front_color_distance"] < 0.3, m
     assert m["stems_at_5_percent"] == 1
+    # the bark wears the photo's wood colour (the texture itself: viewers need no colour factor)
+    bark = next(p for p in res.mesh.parts if p.name == "bark").material
+    wood = np.median(res.photo.image[res.segmentation.wood_mask], axis=0)
+    assert np.abs(bark.texture[..., :3].reshape(-1, 3).mean(0) - wood).max() < 8
+    assert bark.base_color == (1.0, 1.0, 1.0, 1.0) and bark.normal_texture is not None
     # every leaf and attractor-grown node lies inside the crown's RDM (with a card's tolerance)
     f = res.foliage
     d = f.positions - res.rdm.center

@@ -20,7 +20,7 @@ from treeform.structures.foliage import Foliage
 from treeform.structures.skeleton import TreeSkeleton
 
 __all__ = ["BARK_TEXTURE_SIZE", "FOLIAGE_KINDS", "LEAF_TEXTURE_SIZE", "MAX_AUTO_TEXTURE_SIZE", "TEXELS_PER_METRE",
-           "bark_normals", "foliage_coverage", "foliage_texture_kind", "texture_sizes", "tree_textures"]
+           "bark_normals", "tint_texture", "foliage_coverage", "foliage_texture_kind", "texture_sizes", "tree_textures"]
 
 FOLIAGE_KINDS = ("broadleaf", "needles", "scales")
 """Foliage kinds: broadleaf clusters, pine-like needle clusters, thuja-like scale sprays."""
@@ -163,3 +163,28 @@ def bark_normals(bark: np.ndarray, *, seed=0) -> np.ndarray:
     if bark.ndim != 3 or bark.shape[0] != bark.shape[1]:
         raise InputError(f"bark: expected a square (N, N, 4) texture, got shape {bark.shape}")
     return _tubes._default_bark_normal(int(bark.shape[0]), int(seed)).copy()
+
+
+def tint_texture(texture: np.ndarray, rgb) -> np.ndarray:
+    """The texture with its colour scaled per channel so its mean becomes ``rgb`` (0-255).
+
+    Each channel's gain is kept within [0.2, 3] (a texture darker or lighter than the photo's
+    wood by more than that keeps some of its own look); alpha is unchanged.
+
+    Examples
+    --------
+    >>> t = np.full((4, 4, 4), 100, np.uint8)
+    >>> tint_texture(t, (150, 100, 50))[0, 0].tolist()
+    [150, 100, 50, 100]
+    """
+    t = np.asarray(texture)
+    if t.ndim != 3 or t.shape[2] not in (3, 4) or t.dtype != np.uint8:
+        raise InputError(f"texture: expected an (H, W, 3|4) uint8 array, got {t.shape} {t.dtype}")
+    target = np.asarray(rgb, np.float64).reshape(-1)
+    if target.shape != (3,) or not np.all(np.isfinite(target)):
+        raise InputError(f"rgb: expected 3 numbers, got {rgb!r}")
+    mean = t[..., :3].reshape(-1, 3).mean(0)
+    gain = np.clip(target / np.maximum(mean, 1e-3), 0.2, 3.0)
+    out = t.copy()
+    out[..., :3] = np.clip(np.rint(t[..., :3] * gain), 0, 255).astype(np.uint8)
+    return out

@@ -224,10 +224,13 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                 foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
-        from treeform.geometry.textures import bark_normals
+        from treeform.geometry.textures import bark_normals, tint_texture
 
         bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=cfg.foliage_kind(),
                                            texture_size=cfg.texture_size, seed=cfg.seed)
+        bark_normal = bark_normals(bark_tex, seed=cfg.seed)
+        if seg.wood_mask.sum() > 20:  # the bark takes the colour of the photo's wood (brighter too)
+            bark_tex = tint_texture(bark_tex, np.median(image[seg.wood_mask], axis=0))
         if cfg.leaf_texture == "photo" and len(foliage):
             from treeform.crown.photo_leaves import photo_leaf_atlas
             from treeform.geometry.textures import foliage_texture_kind
@@ -242,15 +245,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                                  kind=foliage_texture_kind(cfg.foliage_kind()), seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
-                         bark_normal=bark_normals(bark_tex, seed=cfg.seed), seed=cfg.seed)
-        wood = seg.wood_mask
-        if wood.sum() > 20:
-            tint = np.median(image[wood], axis=0) / 255.0
-            for part in mesh.parts:
-                if part.material.texture is not None and part.name != "leaves":
-                    tex_mean = part.material.texture[..., :3].reshape(-1, 3).mean(0) / 255.0
-                    f = np.clip(tint / np.maximum(tex_mean, 1e-3), 0.2, 3.0)
-                    part.material.base_color = (float(min(f[0], 1)), float(min(f[1], 1)), float(min(f[2], 1)), 1.0)
+                         bark_normal=bark_normal, seed=cfg.seed)
     with timer.stage("render"):
         from treeform.metrics.treeform_metrics import crown_extents, stems_at, tree_height
         from treeform.methods._single_photo import photo_metrics
