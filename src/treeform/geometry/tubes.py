@@ -60,15 +60,6 @@ def bark_texture(size: int = BARK_TEXTURE_SIZE, *, seed=0) -> np.ndarray:
     >>> t.shape, t.dtype, int(t[..., 3].min())
     ((32, 32, 4), dtype('uint8'), 255)
     """
-    col, _ = _bark_fields(size, seed)
-    out = np.empty((int(size), int(size), 4), np.uint8)
-    out[..., :3] = np.clip(np.rint(col * 255.0), 0, 255).astype(np.uint8)
-    out[..., 3] = 255
-    return out
-
-
-def _bark_fields(size, seed) -> tuple[np.ndarray, np.ndarray]:
-    """The bark's linear-ish colour (size, size, 3) and relief height (size, size) in [0, 1]."""
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 8:
         raise InputError(f"size: expected an integer >= 8, got {size!r}")
     size = int(size)
@@ -91,42 +82,8 @@ def _bark_fields(size, seed) -> tuple[np.ndarray, np.ndarray]:
     col = plate_dark + (plate_light - plate_dark) * light[..., None]
     col *= (1.0 + 0.07 * grain)[..., None]
     col = col * (1.0 - fissure[..., None]) + fissure_col * fissure[..., None]
-    height = np.clip(relief * (1.0 - fissure) + 0.05 * grain, 0.0, 1.0)
-    return col, height
-
-
-def bark_normal_map(size: int = BARK_TEXTURE_SIZE, *, seed=0, strength: float = 2.0) -> np.ndarray:
-    """The tangent-space normal map of :func:`bark_texture` (same size and seed): fissures and plates in relief.
-
-    Normals come from the relief height's periodic gradients (so the map tiles like the
-    texture), X along the texture's columns (around the branch), Y up the texture (along it),
-    in glTF's convention (RGB = (n + 1) / 2).
-
-    Parameters
-    ----------
-    size : int
-    seed : int or numpy.random.Generator
-    strength : float
-        Height of the relief in texels per unit of height (steeper with more).
-
-    Returns
-    -------
-    ndarray, shape (size, size, 4), uint8
-
-    Examples
-    --------
-    >>> n = bark_normal_map(32)
-    >>> n.shape, bool(n[..., 2].min() > 128)  # every normal leaves the surface
-    ((32, 32, 4), True)
-    """
-    _, height = _bark_fields(size, seed)
-    hh = height * float(strength) * size / 64.0  # relief in texels: the same look at every size
-    dx = 0.5 * (np.roll(hh, -1, axis=1) - np.roll(hh, 1, axis=1))
-    dy = 0.5 * (np.roll(hh, 1, axis=0) - np.roll(hh, -1, axis=0))  # rows grow down; +Y is up
-    n = np.stack([-dx, -dy, np.ones_like(hh)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    out = np.empty((int(size), int(size), 4), np.uint8)
-    out[..., :3] = np.clip(np.rint((n + 1.0) * 127.5), 0, 255).astype(np.uint8)
+    out = np.empty((size, size, 4), np.uint8)
+    out[..., :3] = np.clip(np.rint(col * 255.0), 0, 255).astype(np.uint8)
     out[..., 3] = 255
     return out
 
@@ -140,9 +97,27 @@ def _default_bark(size: int, seed: int) -> np.ndarray:
 
 @functools.lru_cache(maxsize=4)
 def _default_bark_normal(size: int, seed: int) -> np.ndarray:
-    t = bark_normal_map(size, seed=seed)
+    t = bark_normal_map(_default_bark(size, seed))
     t.flags.writeable = False
     return t
+
+
+def bark_normal_map(bark: np.ndarray) -> np.ndarray:
+    """The tangent-space normal map of a bark texture: its dark fissures sink, its plates stand out.
+
+    :func:`~treeform.geometry.normal_map_from_height` of the texture's luminance, tiling as the
+    texture does, with the relief of the synthetic dataset's bark (strength 6 at 256²) at any size.
+
+    Examples
+    --------
+    >>> n = bark_normal_map(bark_texture(32))
+    >>> n.shape, bool(n[..., 2].min() > 128)  # every normal leaves the surface
+    ((32, 32, 4), True)
+    """
+    from treeform.geometry.normal_maps import normal_map_from_height, texture_height
+
+    bark = np.asarray(bark)
+    return normal_map_from_height(texture_height(bark), strength=6.0 * bark.shape[1] / 256, wrap=True)
 
 
 def bark_material(texture=None, normal_texture=None) -> Material:
