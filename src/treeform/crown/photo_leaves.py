@@ -55,6 +55,25 @@ def _shapes(tile: int, kind: str, seed: int, grow: int) -> tuple[np.ndarray, np.
     return np.stack(alpha), np.stack(detail)
 
 
+def _pack(tiles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lay (T, t, t, 4) tiles in rows of a square atlas; returns it and each tile's uv rectangle.
+
+    The rectangles lie half a texel inside their tiles, so filtering stays within a tile.
+    """
+    n_tiles, tile = len(tiles), tiles.shape[1]
+    cols = int(math.ceil(math.sqrt(n_tiles)))
+    rows = int(math.ceil(n_tiles / cols))
+    side = int(math.ceil(max(cols, rows) * tile / 4) * 4)
+    full = np.zeros((rows * cols, tile, tile, 4), np.uint8)
+    full[:n_tiles] = tiles
+    atlas = np.zeros((side, side, 4), np.uint8)
+    atlas[: rows * tile, : cols * tile] = full.reshape(rows, cols, tile, tile, 4).transpose(0, 2, 1, 3, 4).reshape(
+        rows * tile, cols * tile, 4)
+    col, row = np.arange(n_tiles) % cols, np.arange(n_tiles) // cols
+    rect = np.column_stack([col * tile + 0.5, row * tile + 0.5, (col + 1) * tile - 0.5, (row + 1) * tile - 0.5])
+    return atlas, (rect / side).astype(np.float32)
+
+
 def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha: np.ndarray, *,
                      kind: str = "cluster", tile: int | None = None, max_tiles: int = 16384,
                      visible: np.ndarray | None = None, shade: np.ndarray | None = None, detail: float = 0.35,
@@ -204,21 +223,7 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     mean = np.where(wsum[:, None] > 1e-6, mean, sample[..., :3].mean(axis=(1, 2)))
     rgb = np.where(a_tile[..., None] > 1e-3, rgb, mean[:, None, None, :])
 
-    cols = int(math.ceil(math.sqrt(n_tiles)))
-    rows = int(math.ceil(n_tiles / cols))
-    side = int(math.ceil(max(cols, rows) * tile / 4) * 4)
-    atlas = np.zeros((side, side, 4), np.uint8)
-    tex = np.concatenate([rgb, a_tile[..., None]], axis=3)
-    tex = np.clip(np.rint(tex * 255.0), 0, 255).astype(np.uint8)
-    col_i, row_i = np.arange(n_tiles) % cols, np.arange(n_tiles) // cols
-    full = np.zeros((rows * cols, tile, tile, 4), np.uint8)
-    full[:n_tiles] = tex
-    block = full.reshape(rows, cols, tile, tile, 4).transpose(0, 2, 1, 3, 4).reshape(rows * tile, cols * tile, 4)
-    atlas[: rows * tile, : cols * tile] = block
-    # each card's rectangle, half a texel inside its tile so filtering stays within it
-    x0 = (col_i * tile + 0.5) / side
-    y0 = (row_i * tile + 0.5) / side
-    x1 = ((col_i + 1) * tile - 0.5) / side
-    y1 = ((row_i + 1) * tile - 0.5) / side
-    rect = np.column_stack([x0, y0, x1, y1]).astype(np.float32)[tile_of]
+    tex = np.clip(np.rint(np.concatenate([rgb, a_tile[..., None]], axis=3) * 255.0), 0, 255).astype(np.uint8)
+    atlas, rects = _pack(tex)
+    rect = rects[tile_of]
     return atlas, foliage.with_colors(foliage.color, uv=rect)

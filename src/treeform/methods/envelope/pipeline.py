@@ -234,15 +234,15 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         if cfg.leaf_texture == "photo" and len(foliage):
             from treeform.crown.photo_leaves import photo_leaf_atlas
             from treeform.geometry.textures import foliage_texture_kind
-
             from treeform.segment.matting import sky_gaps
 
             # foliage alpha from the photo (sky seen through the crown left out), softened by a
-            # pixel so tile edges are antialiased
+            # pixel so tile edges are antialiased; the cards need no tint (shading is in the tiles)
             alpha = ndi.gaussian_filter((leaf_mask & ~sky_gaps(image, seg, ratio=3.0)) * seg.alpha, 0.6)
-            leaf_tex, foliage = photo_leaf_atlas(foliage.with_colors(np.ones((len(foliage), 3))), cam, image, alpha,
-                                                 visible=visible, shade=np.where(visible, 1.0, shade),
-                                                 kind=foliage_texture_kind(cfg.foliage_kind()), seed=cfg.seed)
+            white = foliage.with_colors(np.ones((len(foliage), 3)))
+            leaf_tex, foliage = photo_leaf_atlas(white, cam, image, alpha, visible=visible,
+                                                 shade=np.where(visible, 1.0, shade), seed=cfg.seed,
+                                                 kind=foliage_texture_kind(cfg.foliage_kind()))
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
                          bark_normal=bark_normal, seed=cfg.seed)
