@@ -188,3 +188,18 @@ def test_mask_to_segmentation_empty_mask():
 def test_wood_colour_mask():
     px = np.array([[[110, 80, 55], [60, 140, 40], [110, 160, 230]]], np.uint8)  # bark, leaf, sky
     assert wood_colour_mask(px).tolist() == [[True, False, False]]
+
+
+def test_trunk_run_stops_where_a_same_coloured_crown_begins():
+    from treeform.segment.classical import _below_the_crown
+
+    run = np.zeros((100, 60), bool)
+    run[40:100, 27:33] = True  # a 6-px trunk standing on the bottom row
+    run[5:45, 5:55] = True  # a crown of the trunk's colour on top of it
+    cut = _below_the_crown(run)
+    rows = np.flatnonzero(cut.any(axis=1))
+    assert rows.max() == 99 and 40 <= rows.min() <= 46  # the trunk, not the crown
+    assert cut[rows].sum(axis=1).max() <= 6
+    lone = np.zeros((100, 60), bool)
+    lone[10:100, 28:32] = True  # a plain trunk is kept whole
+    assert np.array_equal(_below_the_crown(lone), lone)

@@ -98,7 +98,7 @@ def test_learned_segmenter_separates_a_tree_behind(sprites):
     assert np.median(ious) > 0.55 and min(ious) > 0.35, ious
 
 
-@pytest.mark.xfail(strict=True, reason="classical colour rules still call a red autumn crown wood (issue 11 item 1)")
+@pytest.mark.xfail(strict=True, reason="classical rules still call a third of a red autumn crown wood (issue 11 item 1)")
 def test_classical_segmenter_keeps_autumn_crowns_foliage(sprites):
     for k in range(4):
         image, truth = scene(sprites, "autumn", k)

@@ -29,7 +29,10 @@ of the photo reduced to :data:`WORK_SIDE` pixels on its long side, step 4 at ful
    trunk is searched again at full size (a thin trunk is a pixel wide when reduced);
    nothing of the tree lies below the ground line or below the trunk's foot, and the
    foot is wood. Wood is the bark colour, judged against the tree's own median
-   colour so that grey-green needles and leaf shadows stay foliage.
+   colour so that grey-green needles and leaf shadows stay foliage. Where the tree's
+   own colour is bark-like (leafless, or a red / orange / brown autumn crown), shape
+   decides: a trunk run stops where it widens into the crown, and bark-coloured masses
+   too broad for branches are foliage.
 
 :func:`mask_to_segmentation` labels a user-supplied tree mask with the same wood
 colour model and trunk search.
@@ -47,6 +50,9 @@ __all__ = ["segment_tree", "mask_to_segmentation", "wood_colour_mask", "WORK_SID
 
 WORK_SIDE = 256
 """Long side, in pixels, of the reduced copy on which the graph cut runs."""
+LEAF_MASS = 0.01
+"""Leafless-looking trees: bark-coloured masses broader than a disc of this share of the tree's
+height are leaf masses (a red, orange or brown autumn crown), not branches."""
 
 _MIN_TREE_FRACTION = 0.01
 _GRABCUT_ITERS = 4
@@ -423,7 +429,32 @@ def _find_trunk(F: dict, cand: np.ndarray, g: np.ndarray, ax: int, *, near: np.n
     keep = np.zeros(n, bool)
     for k, xc in standing:
         keep[k] = abs(xc - tx) <= 0.15 * w
-    return keep[lab] & vb, tx
+    return _below_the_crown(keep[lab] & vb), tx
+
+
+def _below_the_crown(trunk: np.ndarray) -> np.ndarray:
+    """A trunk run up from its foot only while it stays trunk-wide.
+
+    A run of bark-coloured pixels can climb on into a crown of the same colour (red, orange,
+    brown autumn leaves): where its width passes 2.5 times the width of its lowest fifth
+    (plus 2 pixels) for 3 rows in a row, the crown begins and the run is cut there. The
+    shape decides, not the hue.
+    """
+    rows = np.flatnonzero(trunk.any(axis=1))
+    if len(rows) < 10:
+        return trunk
+    width = trunk[rows].sum(axis=1)
+    foot = float(np.median(width[-max(3, len(rows) // 5):]))
+    wide = width > 2.5 * foot + 2
+    # from the foot upwards: the first row where 3 wide rows in a row begin
+    run = 0
+    for i in range(len(rows) - 1, -1, -1):
+        run = run + 1 if wide[i] else 0
+        if run >= 3:
+            out = trunk.copy()
+            out[: rows[i + 2] + 1] = False
+            return out
+    return trunk
 
 
 def _grabcut_image(F: dict) -> np.ndarray:
@@ -557,7 +588,13 @@ def _wood_in_tree(F: dict, mask: np.ndarray, *, threshold: float = 2.0) -> np.nd
     if not mask.any():
         return bark
     if _median(F["a"], mask) > -2.0 and _median(F["exg"], mask) < 0.03:
-        return bark  # the tree's typical colour is bark: a leafless tree
+        # the tree's typical colour is bark: a leafless tree -- or a red, orange or brown autumn
+        # crown. Told apart by shape, not hue: branches are thin; what survives an opening by a
+        # disc of LEAF_MASS of the tree's height is a leaf mass (the trunk is found on its own)
+        rows = np.flatnonzero(mask.any(axis=1))
+        r = max(2, int(round(LEAF_MASS * (rows[-1] - rows[0] + 1))))
+        broad = cv2.morphologyEx(bark.astype(np.uint8), cv2.MORPH_OPEN, _disc(r)).astype(bool)
+        return bark & ~broad
     return bark & (_wood_score(F, mask) > threshold)
 
 
