@@ -40,32 +40,19 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
                   help="treeform: photographs of real trees -> 3D tree assets.")
 
 
-class Crown(str, Enum):
-    round = "round"
-    conical = "conical"
+def _choices(name: str, *values: str) -> type:
+    """A ``str`` Enum whose members are named by their values (what typer shows as choices)."""
+    return Enum(name, [(v, v) for v in values], type=str)
 
 
-class SegmenterName(str, Enum):
-    learned = "learned"
-    classical = "classical"
-
-
+Crown = _choices("Crown", "round", "conical")
+SegmenterName = _choices("SegmenterName", "learned", "classical")
 SEGMENTER_OPTION = typer.Option(SegmenterName.classical, "--segmenter",
                                 help="Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network).")
 
 
-class Lod(str, Enum):
-    low = "low"
-    medium = "medium"
-    high = "high"
-    full = "full"
-
-
-class FoliageKind(str, Enum):
-    auto = "auto"
-    broadleaf = "broadleaf"
-    needles = "needles"
-    scales = "scales"
+Lod = _choices("Lod", "low", "medium", "high", "full")
+FoliageKind = _choices("FoliageKind", "auto", "broadleaf", "needles", "scales")
 
 
 TEXTURE_SIZE_HELP = "Bark texture edge in texels, leaves half of it (default: from the tree's size, >= 512/256)."
@@ -121,24 +108,10 @@ def run_api(func, *args, stages=None, display=None, inputs=(), **kwargs):
         _fail("out of memory (try a smaller --lod or photo)", 1)
 
 
-class LeafTexture(str, Enum):
-    photo = "photo"
-    procedural = "procedural"
-
-
-class Profile(str, Enum):
-    rounded = "rounded"
-    thin_plate = "thin-plate"
-
-
-class Colonization(str, Enum):
-    coarse = "coarse"
-    paper = "paper"
-
-
-class Method(str, Enum):
-    envelope = "envelope"
-    learned = "learned"
+LeafTexture = _choices("LeafTexture", "photo", "procedural")
+Profile = _choices("Profile", "rounded", "thin-plate")
+Colonization = _choices("Colonization", "coarse", "paper")
+Method = _choices("Method", "envelope", "learned")
 
 
 @app.command()
