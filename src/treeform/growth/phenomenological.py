@@ -4,7 +4,8 @@ The growth function of Stava et al. 2014 (after Měch & Prusinkiewicz 1996) with
 shadow-propagation voxel grid (Palubicki et al. 2009). The extracted paper names the
 parameters (Table 3) but gives no formulas; where it is silent or garbled we follow the
 standard published forms and the growth code the authors used for Table 2's trees, and say
-so below. One growth cycle is one year; each cycle, vectorised over all buds:
+so below. The cycles run in compiled kernels (:mod:`treeform.growth._kernels`, numba) with
+their own seeded random stream. One growth cycle is one year; each cycle, over all buds:
 
 1. **Light.** Every living internode casts shadow into the voxels below it in a pyramid,
    ``Δs = a · b^-q`` in the ``(2q+1) × (2q+1)`` voxels ``q`` layers down, ``q = 0 … q_max``
@@ -50,6 +51,7 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.growth import _kernels as _k
 from treeform.structures.skeleton import TreeSkeleton
 
 __all__ = ["GrowthParameters", "PARAMETER_SYMBOLS", "apical_control", "grow"]
@@ -304,167 +306,6 @@ def _perpendicular(d: np.ndarray, v: np.ndarray) -> np.ndarray:
     return w / n[..., None]
 
 
-def _turn(d: np.ndarray, angle_deg: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Turn unit directions ``d`` by ``angle_deg`` about random axes perpendicular to them."""
-    u = _perpendicular(d, rng.normal(size=d.shape))
-    a = np.radians(angle_deg)[:, None]
-    return _unit(np.cos(a) * d + np.sin(a) * u)
-
-
-class _Nodes:
-    """Growable arrays of internodes (node i is the end of the internode from parent[i])."""
-
-    def __init__(self, cap: int = 4096):
-        self.n = 0
-        self.pos = np.empty((cap, 3))
-        self.parent = np.empty(cap, np.int64)
-        self.year = np.empty(cap, np.int64)
-        self.depth = np.empty(cap, np.int64)
-        self.alive = np.empty(cap, bool)
-
-    def add(self, pos, parent, year) -> np.ndarray:
-        k = len(pos)
-        if self.n + k > len(self.parent):
-            cap = 2 * (self.n + k)
-            for name in ("pos", "parent", "year", "depth", "alive"):
-                old = getattr(self, name)
-                new = np.empty((cap,) + old.shape[1:], old.dtype)
-                new[: self.n] = old[: self.n]
-                setattr(self, name, new)
-        s = slice(self.n, self.n + k)
-        parent = np.asarray(parent, np.int64)
-        self.pos[s] = pos
-        self.parent[s] = parent
-        self.year[s] = year
-        self.depth[s] = np.where(parent >= 0, self.depth[np.maximum(parent, 0)] + 1, 0)
-        self.alive[s] = True
-        self.n += k
-        return np.arange(s.start, s.stop)
-
-
-class _Levels:
-    """Nodes bucketed by graph depth, for vectorised sweeps up (to the root) and down the tree."""
-
-    def __init__(self, parent: np.ndarray, depth: np.ndarray, nodes: np.ndarray):
-        d = depth[nodes]
-        order = nodes[np.argsort(d, kind="stable")]
-        ds = depth[order]
-        cuts = np.flatnonzero(np.diff(ds)) + 1
-        self.buckets = [b for b in np.split(order, cuts) if len(b) and depth[b[0]] > 0]
-        self.parent = parent
-        self.n = len(parent)
-
-    def accumulate(self, values: np.ndarray, factor: float) -> np.ndarray:
-        """``A[i] = values[i] + factor · Σ_children A[c]`` (children before parents)."""
-        a = np.array(values, np.float64, copy=True)
-        for b in reversed(self.buckets):
-            np.add.at(a, self.parent[b], factor * a[b])
-        return a
-
-    def accumulate_decay(self, values: np.ndarray, factor: float, pos: np.ndarray) -> np.ndarray:
-        """``A[i] = values[i] + Σ_children factor^|c - i| · A[c]`` (decay per metre of internode)."""
-        a = np.array(values, np.float64, copy=True)
-        for b in reversed(self.buckets):
-            dist = np.linalg.norm(pos[b] - pos[self.parent[b]], axis=1)
-            np.add.at(a, self.parent[b], factor ** dist * a[b])
-        return a
-
-    def subtree_max(self, values: np.ndarray) -> np.ndarray:
-        """Largest value in each node's subtree (itself included)."""
-        a = np.array(values, copy=True)
-        for b in reversed(self.buckets):
-            np.maximum.at(a, self.parent[b], a[b])
-        return a
-
-    def branch_levels(self, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Branch level of every node, and which nodes start a lateral branch.
-
-        At each node the child carrying the most ``weight`` in its subtree continues the
-        node's level (the main axis); every other child starts a branch one level higher.
-        """
-        nodes = np.concatenate(self.buckets) if self.buckets else np.zeros(0, np.int64)
-        starts = np.zeros(self.n, bool)
-        level = np.zeros(self.n, np.int64)
-        if len(nodes) == 0:
-            return level, starts
-        par = self.parent[nodes]
-        order = np.lexsort((nodes, -weight[nodes], par))
-        first = np.ones(len(order), bool)
-        first[1:] = par[order[1:]] != par[order[:-1]]
-        starts[nodes[order[~first]]] = True
-        for b in self.buckets:
-            level[b] = level[self.parent[b]] + starts[b]
-        return level, starts
-
-    def spread(self, flags: np.ndarray) -> np.ndarray:
-        """``flags`` OR-ed down to every descendant."""
-        f = np.array(flags, bool, copy=True)
-        for b in self.buckets:
-            f[b] |= f[self.parent[b]]
-        return f
-
-    def place(self, root: np.ndarray, segments: np.ndarray) -> np.ndarray:
-        """Positions from segment vectors: ``p[i] = p[parent[i]] + segments[i]``."""
-        p = np.empty_like(segments)
-        p[0] = root
-        for b in self.buckets:
-            p[b] = p[self.parent[b]] + segments[b]
-        return p
-
-
-class _ShadowGrid:
-    """Shadow-propagation voxel grid (Palubicki et al. 2009 §4) over the current tree.
-
-    ``s`` at a voxel is ``Σ a · b^-q`` over the internodes in the ``(2q+1)²`` voxels ``q``
-    layers above it (``q = 0 … SHADOW_DEPTH``), computed with one summed-area table.
-    """
-
-    def __init__(self, points: np.ndarray, voxel: float, a: float):
-        q_max = SHADOW_DEPTH
-        self.voxel = voxel
-        self.a = a
-        margin_lo = np.array([q_max + 2, q_max + 2, q_max + 2])
-        margin_hi = np.array([q_max + 2, 8, q_max + 2])
-        lo = np.floor(points.min(0) / voxel) - margin_lo
-        hi = np.floor(points.max(0) / voxel) + margin_hi
-        self.lo = lo * voxel
-        shape = (hi - lo + 1).astype(np.int64)
-        self.shape = shape
-        nx, ny, nz = (int(s) for s in shape)
-        ijk = np.floor((points - self.lo) / voxel).astype(np.int64)
-        counts = np.bincount(np.ravel_multi_index(ijk.T, (nx, ny, nz)), minlength=nx * ny * nz)
-        counts = counts.reshape(nx, ny, nz).astype(np.float64)
-        # summed-area table over x and z, padded so every box lookup is a plain slice
-        p = q_max + 1
-        sat = np.zeros((nx + 2 * q_max + 1, ny, nz + 2 * q_max + 1))
-        sat[p:p + nx, :, p:p + nz] = counts
-        sat = sat.cumsum(0).cumsum(2)
-        shadow = np.zeros((nx, ny, nz))
-        for q in range(q_max + 1):
-            x1, x0 = slice(p + q, p + q + nx), slice(p - q - 1, p - q - 1 + nx)
-            z1, z0 = slice(p + q, p + q + nz), slice(p - q - 1, p - q - 1 + nz)
-            box = sat[x1, :, z1] - sat[x0, :, z1] - sat[x1, :, z0] + sat[x0, :, z0]
-            if q < ny:
-                shadow[:, : ny - q, :] += (a * SHADOW_DECAY ** -q) * box[:, q:, :]
-        self.shadow = shadow
-        gx, gy, gz = np.gradient(shadow)
-        self.grad = np.stack([gx, gy, gz], -1)
-
-    def _index(self, points: np.ndarray):
-        ijk = np.floor((points - self.lo) / self.voxel).astype(np.int64)
-        return tuple(np.clip(ijk[:, k], 0, self.shape[k] - 1) for k in range(3))
-
-    def exposure(self, points: np.ndarray) -> np.ndarray:
-        """Light exposure in [0, 1] at ``points`` (N, 3)."""
-        s = self.shadow[self._index(points)]
-        return np.clip(1.0 - (s - self.a) / FULL_LIGHT, 0.0, 1.0)
-
-    def light_direction(self, points: np.ndarray) -> np.ndarray:
-        """Unit direction of most light at ``points``: ``normalise(a · ŷ - ∇s)``."""
-        g = self.grad[self._index(points)]
-        return _unit(LIGHT_UP_BIAS * max(self.a, 1e-3) * _UP - g)
-
-
 # ------------------------------------------------------------------------------------- growth
 def _check_envelope(envelope):
     if envelope is None:
@@ -545,22 +386,6 @@ def grow(params: GrowthParameters, *, seed=0, envelope=None, initial: TreeSkelet
     return skeleton
 
 
-def _branches(nodes: _Nodes, alive: np.ndarray):
-    """Depth buckets of the living nodes, their branch levels and the lateral-branch starts.
-
-    The child carrying the most wood (internode length in its subtree) continues its
-    parent's branch level (recomputed every cycle, so a lateral that takes over a dead
-    leader becomes the main axis).
-    """
-    n = nodes.n
-    levels = _Levels(nodes.parent[:n], nodes.depth[:n], alive)
-    seg = np.zeros(n)
-    kids = alive[alive > 0]
-    seg[kids] = np.linalg.norm(nodes.pos[kids] - nodes.pos[nodes.parent[kids]], axis=1)
-    level, starts = levels.branch_levels(levels.accumulate(seg, 1.0))
-    return levels, level, starts
-
-
 def _scaffold_buds(p: GrowthParameters, sk: TreeSkeleton, rng: np.random.Generator, outer: float = 1 / 3):
     """Apical buds at a scaffold's tips; lateral buds on the outer third of every branch above the pruning height.
 
@@ -593,174 +418,148 @@ def _scaffold_buds(p: GrowthParameters, sk: TreeSkeleton, rng: np.random.Generat
     return b_node.astype(np.int64), b_dir, b_side, b_apical, np.zeros(len(b_node), np.int64)
 
 
-def _simulate(p: GrowthParameters, rng: np.random.Generator, inside, initial: TreeSkeleton | None = None) -> _Nodes:
-    """Run ``p.age`` growth cycles (see the module docstring); returns every node ever grown."""
-    nodes = _Nodes()
+def _param_vector(p: GrowthParameters) -> np.ndarray:
+    """The float parameters in the kernels' order (:mod:`treeform.growth._kernels` ``P_*``)."""
+    v = np.empty(_k.P_SIZE)
+    for idx, name in ((_k.P_AAV, "apical_angle_variance"), (_k.P_BAM, "branching_angle_mean"),
+                      (_k.P_BAV, "branching_angle_variance"), (_k.P_RAM, "roll_angle_mean"),
+                      (_k.P_RAV, "roll_angle_variance"), (_k.P_AKP, "apical_bud_kill_probability"),
+                      (_k.P_LKP, "lateral_bud_kill_probability"), (_k.P_ALF, "apical_bud_lighting_factor"),
+                      (_k.P_LLF, "lateral_bud_lighting_factor"), (_k.P_ADB, "apical_dominance_base"),
+                      (_k.P_ADF, "apical_dominance_distance_factor"), (_k.P_AAF, "apical_dominance_age_factor"),
+                      (_k.P_GR, "growth_rate"), (_k.P_ILB, "internode_length_base"),
+                      (_k.P_IAF, "internode_length_age_factor"), (_k.P_ACB, "apical_control_base"),
+                      (_k.P_ACAF, "apical_control_age_factor"), (_k.P_ACLF, "apical_control_level_factor"),
+                      (_k.P_MBA, "max_bud_age"), (_k.P_LBF, "light_blocking_factor"), (_k.P_PHO, "phototropism"),
+                      (_k.P_GGB, "gravitropism_base"), (_k.P_GLF, "gravitropism_level_factor"),
+                      (_k.P_PPF, "pruning_factor"), (_k.P_LPF, "low_branch_pruning_factor")):
+        v[idx] = float(getattr(p, name))
+    return v
+
+
+class _Tree:
+    """Growable arrays of the internodes (node i ends the internode from parent[i]) and of the buds."""
+
+    def __init__(self, cap: int = 16384):
+        self.n = 0
+        self.pos = np.empty((cap, 3))
+        self.parent = np.empty(cap, np.int64)
+        self.year = np.empty(cap, np.int64)
+        self.alive = np.empty(cap, bool)
+        self.side = np.zeros((cap, 3))  # rolled side of each internode: its lateral buds spread from it
+        self.nbud = 0
+        self.bnode = np.empty(cap, np.int64)
+        self.bq = np.empty(cap, np.int64)  # -1: direction in bdir / bside; q >= 0: lateral bud q of its internode
+        self.bdir = np.empty((cap, 3))
+        self.bside = np.empty((cap, 3))
+        self.bapical = np.empty(cap, bool)
+        self.bage = np.empty(cap, np.int64)
+
+    @staticmethod
+    def _grow(arrays, used: int, need: int):
+        if need <= len(arrays[0]):
+            return arrays
+        cap = max(need, 2 * len(arrays[0]))
+        out = []
+        for old in arrays:
+            new = np.empty((cap,) + old.shape[1:], old.dtype)
+            new[:used] = old[:used]
+            out.append(new)
+        return out
+
+    def reserve(self, nodes: int, buds: int) -> None:
+        """Room for ``nodes`` more internodes and ``buds`` buds in all."""
+        self.pos, self.parent, self.year, self.alive, self.side = self._grow(
+            [self.pos, self.parent, self.year, self.alive, self.side], self.n, self.n + nodes)
+        self.bnode, self.bq, self.bdir, self.bside, self.bapical, self.bage = self._grow(
+            [self.bnode, self.bq, self.bdir, self.bside, self.bapical, self.bage], self.nbud, buds)
+
+    def add_nodes(self, pos, parent, year) -> None:
+        self.reserve(len(pos), 0)
+        s = slice(self.n, self.n + len(pos))
+        self.pos[s], self.parent[s], self.year[s], self.alive[s] = pos, parent, year, True
+        self.n += len(pos)
+
+    def set_buds(self, node, direction, side, apical, age) -> None:
+        self.reserve(0, len(node))
+        s = slice(0, len(node))
+        self.bnode[s], self.bdir[s], self.bside[s], self.bapical[s], self.bage[s] = node, direction, side, apical, age
+        self.bq[s] = -1
+        self.nbud = len(node)
+
+
+def _simulate(p: GrowthParameters, rng: np.random.Generator, inside, initial: TreeSkeleton | None = None):
+    """Run ``p.age`` growth cycles (see the module docstring); returns the tree of every node ever grown."""
+    tree = _Tree()
+    state = _k.seed_state(rng)
     if initial is None:
-        nodes.add(np.zeros((1, 3)), [-1], 0)
-        # buds: node they sit on, direction, roll reference ("side", perpendicular to the direction),
-        # apical?, age in years
-        b_node = np.zeros(1, np.int64)
-        b_dir = _UP[None].copy()
-        b_side = np.array([[1.0, 0.0, 0.0]])
-        b_apical = np.ones(1, bool)
-        b_age = np.zeros(1, np.int64)
+        tree.add_nodes(np.zeros((1, 3)), [-1], 0)
+        # buds: node they sit on, direction, roll reference ("side", perpendicular to the direction), apical?, age
+        tree.set_buds([0], _UP[None], [[1.0, 0.0, 0.0]], [True], [0])
         n_fixed = 0
     else:
-        idx = nodes.add(initial.positions, initial.parent, 0)
-        depth = np.zeros(initial.n_nodes, np.int64)  # parents come first: one forward sweep
-        for i in range(1, initial.n_nodes):
-            depth[i] = depth[initial.parent[i]] + 1
-        nodes.depth[idx] = depth
-        b_node, b_dir, b_side, b_apical, b_age = _scaffold_buds(p, initial, rng)
+        tree.add_nodes(initial.positions, initial.parent, 0)
+        tree.set_buds(*_scaffold_buds(p, initial, rng))
         n_fixed = initial.n_nodes
+    P = _param_vector(p)
     voxel = VOXEL_FACTOR * p.internode_length_base
-    nlb = p.lateral_buds
-    bud_roll = 2.0 * np.pi * np.arange(1, nlb + 1) / max(nlb, 1)
-
+    up_weight = LIGHT_UP_BIAS * max(p.light_blocking_factor, 1e-3)
+    nlb = int(p.lateral_buds)
     for year in range(p.age):
-        n = nodes.n
-        alive = np.flatnonzero(nodes.alive[:n])
-        grid = _ShadowGrid(nodes.pos[alive], voxel, p.light_blocking_factor)
-        light = np.zeros(n)
-        light[alive] = grid.exposure(nodes.pos[alive])
-        levels, level, starts = _branches(nodes, alive)
-
-        # --- shedding of shaded lateral branches and of every lateral branch below the pruning height
-        if year >= 1:
-            young = nodes.alive[:n] & (year - nodes.year[:n] <= YOUNG_YEARS)
-            lit = levels.accumulate(light * young, 1.0)
-            cnt = levels.accumulate(young.astype(np.float64), 1.0)
-            mean_light = np.where(cnt > 0, lit / np.maximum(cnt, 1e-12), 0.0)
-            tree_light = light[young].mean() if young.any() else 1.0
-            shaded = starts & (year - nodes.year[:n] >= 2) & (mean_light < p.pruning_factor * tree_light)
-            low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
-            cut = shaded | low
-            cut[:n_fixed] = False  # the scaffold is never shed
-            if cut.any():
-                dead = levels.spread(cut)
-                nodes.alive[:n] &= ~dead
-                alive = np.flatnonzero(nodes.alive[:n])
-                levels = _Levels(nodes.parent[:n], nodes.depth[:n], alive)
-
-        # --- bud fate: death, then flushing under light and apical dominance
-        keep = nodes.alive[b_node]
-        if year >= 1:
-            r = rng.random(len(b_node))
-            keep &= ~np.where(b_apical, r < p.apical_bud_kill_probability, r < p.lateral_bud_kill_probability)
-        keep &= b_age <= p.max_bud_age
-        b_node, b_dir, b_side, b_apical, b_age = (
-            b_node[keep], b_dir[keep], b_side[keep], b_apical[keep], b_age[keep])
-        if len(b_node) == 0:
+        t = tree
+        shadow, lo, nbud, s_node, s_dir, s_side, s_level, s_n, s_apical = _k.begin_cycle(
+            year, t.n, n_fixed, t.pos, t.parent, t.year, t.alive, t.side, t.bnode, t.bq, t.bdir, t.bside, t.bapical,
+            t.bage, t.nbud, P, nlb, voxel, YOUNG_YEARS, FULL_LIGHT, SHADOW_DEPTH, SHADOW_DECAY, state)
+        if nbud < 0:
+            t.nbud = 0
             break
-        own = np.zeros(n)
-        np.add.at(own, b_node[b_apical], p.apical_dominance_base * p.apical_dominance_age_factor ** year)
-        auxin = levels.accumulate_decay(own, p.apical_dominance_distance_factor, nodes.pos[:n])
-        inhibitor = auxin[b_node] - np.where(b_apical, own[b_node], 0.0)
-        expo = light[b_node]
-        prob = np.exp(-np.maximum(inhibitor, 0.0)) * np.where(
-            b_apical, expo ** p.apical_bud_lighting_factor, expo ** p.lateral_bud_lighting_factor)
-        flush = rng.random(len(b_node)) < prob
-        # no lateral shoots below the pruning height once the tree has grown above it
-        if nodes.pos[alive, 1].max() > p.low_branch_pruning_factor:
-            flush &= b_apical | (nodes.pos[b_node, 1] >= p.low_branch_pruning_factor)
-        s_level = level[b_node] + ~b_apical
-        top = levels.subtree_max(np.where(nodes.alive[:n], level, 0))
-        rate = p.growth_rate * apical_control(p, s_level, year, top_level=top[b_node])
-        n_int = np.floor(rate + rng.random(len(b_node))).astype(np.int64)
-        flush &= n_int > 0
-
-        # shoots from the flushing buds; the other buds wait a year
-        s_node, s_dir, s_side = b_node[flush], b_dir[flush], b_side[flush]
-        s_level, s_n, s_apical = s_level[flush], n_int[flush], b_apical[flush]
-        stay = ~flush
-        b_node, b_dir, b_side, b_apical, b_age = (
-            b_node[stay], b_dir[stay], b_side[stay], b_apical[stay], b_age[stay] + 1)
-        new_buds = []
-        m = len(s_node)
-        s_pos = nodes.pos[s_node].copy()
-        s_ok = np.ones(m, bool)
-        s_grown = np.zeros(m, bool)
+        t.nbud = nbud
+        steps = int(s_n.sum())
+        tree.reserve(steps, nbud + steps * nlb + len(s_n))
         length = p.internode_length_base * p.internode_length_age_factor ** year
-        # gravitropism weights the direction of gravity (-Y): positive bends down, negative up
-        tropism = -(p.gravitropism_base + p.gravitropism_level_factor * s_level)[:, None] * _UP
+        if inside is None:
+            t.n, t.nbud = _k.grow_shoots(year, t.n, t.pos, t.parent, t.year, t.alive, t.side, t.nbud, t.bnode, t.bq,
+                                         t.bdir, t.bside, t.bapical, t.bage, s_node, s_dir, s_side, s_level, s_n,
+                                         s_apical, shadow, lo, voxel, up_weight, length, nlb, P, state)
+            continue
+        # with an envelope the same steps run one at a time, the envelope asked in between
+        m = len(s_n)
+        s_ok, s_grown = np.ones(m, bool), np.zeros(m, bool)
+        s_pos = t.pos[s_node].copy()
+        act, new_dir, new_pos = np.empty(m, np.int64), np.empty((m, 3)), np.empty((m, 3))
+        nl, lnode = 0, np.empty(steps, np.int64)
         for k in range(int(s_n.max()) if m else 0):
-            act = np.flatnonzero(s_ok & (s_n > k))
-            if len(act) == 0:
+            c = _k.propose(k, s_ok, s_n, s_apical, s_level, s_dir, s_pos, shadow, lo, voxel, up_weight, length, P,
+                           state, act, new_dir, new_pos)
+            if c == 0:
                 break
-            d = s_dir[act]
-            turn = s_apical[act] | (k > 0)
-            if p.apical_angle_variance > 0 and turn.any():
-                dev = rng.normal(0.0, p.apical_angle_variance / 2.0, (int(turn.sum()), 2))
-                d[turn] = _turn(d[turn], np.hypot(dev[:, 0], dev[:, 1]), rng)
-            d = _unit(d + p.phototropism * grid.light_direction(s_pos[act]) + tropism[act])
-            new_pos = s_pos[act] + length * d
-            ok = new_pos[:, 1] >= 0.0  # nothing grows into the ground
-            if inside is not None:
-                ok &= inside(new_pos)
-            if not ok.all():
-                s_ok[act[~ok]] = False
-                act, d, new_pos = act[ok], d[ok], new_pos[ok]
-                if len(act) == 0:
-                    continue
-            idx = nodes.add(new_pos, s_node[act], year)
-            # the internode rolls about its axis; its lateral buds are spread evenly around it
-            cnt = len(act)
-            roll = np.radians(p.roll_angle_mean + rng.uniform(-1.0, 1.0, cnt) * p.roll_angle_variance)[:, None]
-            side = _perpendicular(d, s_side[act])
-            binorm = np.cross(d, side)
-            side = np.cos(roll) * side + np.sin(roll) * binorm
-            if nlb:
-                binorm = np.cross(d, side)
-                phi = bud_roll[None, :] + np.radians(rng.uniform(-1.0, 1.0, (cnt, nlb)) * p.branching_angle_variance)
-                beta = np.radians(p.branching_angle_mean + rng.normal(0.0, p.branching_angle_variance / 2.0, (cnt, nlb)))
-                u = np.cos(phi)[..., None] * side[:, None] + np.sin(phi)[..., None] * binorm[:, None]
-                bdir = _unit(np.cos(beta)[..., None] * d[:, None] + np.sin(beta)[..., None] * u).reshape(-1, 3)
-                new_buds.append((np.repeat(idx, nlb), bdir, _perpendicular(bdir, np.repeat(d, nlb, 0))))
-            s_dir[act], s_side[act], s_pos[act], s_node[act] = d, side, new_pos, idx
-            s_grown[act] = True
-        # every shoot that was not stopped by the envelope ends in a new apical bud
-        cont = s_ok & s_grown
-        parts = [(b_node, b_dir, b_side, b_apical, b_age),
-                 (s_node[cont], s_dir[cont], s_side[cont], np.ones(int(cont.sum()), bool),
-                  np.zeros(int(cont.sum()), np.int64))]
-        for bn, bd, bs in new_buds:
-            parts.append((bn, bd, bs, np.zeros(len(bn), bool), np.zeros(len(bn), np.int64)))
-        b_node, b_dir, b_side, b_apical, b_age = (np.concatenate(c) for c in zip(*parts))
+            ok = (new_pos[:c, 1] >= 0.0) & inside(new_pos[:c])
+            t.n, nl = _k.commit(c, ok, act, new_dir, new_pos, year, t.n, t.pos, t.parent, t.year, t.alive, t.side,
+                                nl, lnode, s_ok, s_grown, s_node, s_dir, s_side, s_pos, P, state)
+        t.nbud = _k.end_shoots(t.nbud, t.bnode, t.bq, t.bdir, t.bside, t.bapical, t.bage, s_ok, s_grown, s_node,
+                               s_dir, s_side, nl, lnode, nlb)
     # the last cycle's shoots are pruned below the pruning height too
-    n = nodes.n
-    levels, _, starts = _branches(nodes, np.flatnonzero(nodes.alive[:n]))
-    low = starts & (nodes.pos[nodes.parent[:n].clip(0), 1] < p.low_branch_pruning_factor)
-    low[:n_fixed] = False
-    if low.any():
-        nodes.alive[:n] &= ~levels.spread(low)
-    return nodes
+    _k.prune_low(tree.n, n_fixed, tree.pos, tree.parent, tree.alive, p.low_branch_pruning_factor)
+    return tree
 
 
-def _structure(p: GrowthParameters, nodes: _Nodes, inside, n_fixed: int = 0) -> TreeSkeleton:
+def _structure(p: GrowthParameters, tree: _Tree, inside, n_fixed: int = 0) -> TreeSkeleton:
     """Compact the living nodes, give them pipe-model radii and bend them under gravity.
 
     The first ``n_fixed`` nodes (a scaffold) keep their positions."""
     from treeform.growth.radii import branch_orders, pipe_model_radii
 
-    n = nodes.n
-    keep = np.flatnonzero(nodes.alive[:n])
+    n = tree.n
+    keep = np.flatnonzero(tree.alive[:n])
     remap = np.full(n, -1, np.int64)
     remap[keep] = np.arange(len(keep))
-    parent = np.where(nodes.parent[keep] >= 0, remap[nodes.parent[keep].clip(0)], -1)
-    pos = nodes.pos[keep]
-    depth = nodes.depth[keep]
+    parent = np.where(tree.parent[keep] >= 0, remap[tree.parent[keep].clip(0)], -1)
+    pos = tree.pos[keep]
     radius = pipe_model_radii(parent, tip_radius=TIP_RADIUS, exponent=PIPE_EXPONENT)
     if len(keep) > 1 and p.gravity_bending_strength > 0:
-        levels = _Levels(parent, depth, np.arange(len(keep)))
-        seg = np.zeros_like(pos)
-        seg[1:] = pos[1:] - pos[parent[1:]]
-        seg_len = np.linalg.norm(seg, axis=1, keepdims=True)
-        w = p.gravity_bending_strength * p.gravity_bending_angle_factor ** (radius / TIP_RADIUS - 1.0)
-        bent = seg.copy()
-        bent[1:] = _unit(_unit(seg[1:]) - w[1:, None] * _UP) * seg_len[1:]
-        bent[:n_fixed] = seg[:n_fixed]
-        new_pos = levels.place(pos[0], bent)
+        seg, bent = _k.bend_segments(pos, parent, radius, p.gravity_bending_strength, p.gravity_bending_angle_factor,
+                                     TIP_RADIUS, n_fixed)
+        new_pos = _k.place(parent, pos[0], bent)
 
         def outside(q):
             out = q[:, 1] < 0.0
@@ -771,10 +570,10 @@ def _structure(p: GrowthParameters, nodes: _Nodes, inside, n_fixed: int = 0) -> 
             out = outside(new_pos)
             if not out.any():
                 break
-            up_path = levels.accumulate(out.astype(np.float64), 1.0) > 0
+            up_path = _k.ancestors_of(parent, out)
             bent[up_path] = seg[up_path]
-            new_pos = levels.place(pos[0], bent)
+            new_pos = _k.place(parent, pos[0], bent)
         else:
             new_pos = pos
         pos = new_pos
-    return TreeSkeleton(pos, parent, radius, branch_orders(parent, radius), nodes.year[keep].astype(np.float64))
+    return TreeSkeleton(pos, parent, radius, branch_orders(parent, radius), tree.year[keep].astype(np.float64))

@@ -25,15 +25,11 @@ def pipe_model_radii(parent: np.ndarray, *, tip_radius: float = 0.005, exponent:
     >>> pipe_model_radii(np.array([-1, 0, 1, 1]), tip_radius=1.0).round(3).tolist()
     [1.414, 1.414, 1.0, 1.0]
     """
+    from treeform.growth._kernels import pipe_accumulate
+
     parent = np.asarray(parent, np.int64)
-    n = len(parent)
-    acc = np.zeros(n)
-    has_child = np.zeros(n, bool)
-    has_child[parent[1:]] = True
-    acc[~has_child] = tip_radius**exponent
     # children have larger indices: a reverse sweep sees every child before its parent
-    for i in range(n - 1, 0, -1):
-        acc[parent[i]] += acc[i]
+    acc = pipe_accumulate(parent, float(tip_radius) ** exponent)
     return acc ** (1.0 / exponent)
 
 
@@ -45,20 +41,11 @@ def branch_orders(parent: np.ndarray, radius: np.ndarray) -> np.ndarray:
     >>> branch_orders(np.array([-1, 0, 1, 1]), np.array([2, 2, 1.5, 1.0])).tolist()
     [0, 0, 0, 1]
     """
+    from treeform.growth._kernels import main_child_orders
+
     parent = np.asarray(parent, np.int64)
     radius = np.asarray(radius, np.float64)
-    n = len(parent)
-    order = np.zeros(n, np.int32)
-    if n < 2:
-        return order
+    if len(parent) < 2:
+        return np.zeros(len(parent), np.int32)
     # main child of each parent: the child with the largest radius (lowest index on ties)
-    kids = np.arange(1, n)
-    key = np.lexsort((kids, -radius[1:], parent[1:]))
-    sorted_kids = kids[key]
-    first = np.ones(len(sorted_kids), bool)
-    first[1:] = parent[sorted_kids[1:]] != parent[sorted_kids[:-1]]
-    is_main = np.zeros(n, bool)
-    is_main[sorted_kids[first]] = True
-    for i in range(1, n):
-        order[i] = order[parent[i]] + (0 if is_main[i] else 1)
-    return order
+    return main_child_orders(parent, radius)
