@@ -303,3 +303,21 @@ def test_obj_keeps_vertex_colours_when_asked(tmp_path, make_leaves):
     assert all(len(x) == 3 for x in v)
     with pytest.raises(InputError, match="colors"):
         write_obj(mesh, tmp_path / "x.obj", colors="both")
+
+
+def test_tree_outputs_encode_each_texture_once_and_glb_obj_share_it(tmp_path, tree_mesh, skeleton, monkeypatch):
+    import treeform.io.images as images
+    from treeform.io import write_tree_outputs
+
+    calls = []
+    real = images._encode_texture
+    monkeypatch.setattr(images, "_encode_texture", lambda t: calls.append(id(t)) or real(t))
+    write_tree_outputs(tmp_path / "out", mesh=tree_mesh, skeleton=skeleton,
+                       preview=np.zeros((8, 8, 3), np.uint8), config={}, metrics={})
+    textures = {id(p.material.texture) for p in tree_mesh.parts if p.material.texture is not None}
+    assert sorted(calls) == sorted(textures)  # once each, though both the GLB and the OBJ carry them
+    glb = read_glb_textures(tmp_path / "out" / "tree.glb")
+    obj_png = (tmp_path / "out" / "tree_leaf.png").read_bytes()
+    np.testing.assert_array_equal(glb["leaf"], images.read_rgba(tmp_path / "out" / "tree_leaf.png"))
+    assert obj_png == images.texture_png(tree_mesh.parts[1].material.texture)
+    assert images._shared is None  # the sharing ends with the call

@@ -57,7 +57,7 @@ def _png(array: np.ndarray) -> bytes:
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(array)).save(buf, format="PNG", compress_level=6, optimize=False)
+    Image.fromarray(np.ascontiguousarray(array)).save(buf, format="PNG", compress_level=1, optimize=False)
     return buf.getvalue()
 
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
+from treeform._shared.timing import ProgressCallback, StageTimer
 
 __all__ = ["LABELS", "Sample", "SampleOptions", "make_sample", "sample_rng"]
 
@@ -218,7 +219,7 @@ def _unit_dir(azimuth_deg: float, elevation_deg: float) -> list:
     return [math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)]
 
 
-def _lighting(rng):
+def _lighting(rng, shadow_resolution: int = 1024):
     """1–8 directional lights (a sun and fills), shadow strength, ambient and highlight (§4.2.2)."""
     from treeform.render import Lighting
 
@@ -235,7 +236,7 @@ def _lighting(rng):
     ground = sky * rng.uniform(0.35, 0.6) * np.array([1.02, 1.0, 0.9])
     lt = Lighting(direction=sun_dir, key=tuple(sun_col.round(4)), sky=tuple(sky.round(4)),
                   ground=tuple(ground.round(4)), lights=tuple((tuple(d), tuple(c)) for d, c in fills),
-                  shadow=float(round(rng.uniform(0.0, 1.0), 4)), shadow_resolution=1024,
+                  shadow=float(round(rng.uniform(0.0, 1.0), 4)), shadow_resolution=int(shadow_resolution),
                   specular=float(round(rng.uniform(0.0, 0.35), 4)))
     desc = {"lights": 1 + len(fills), "sun_direction": [round(x, 5) for x in sun_dir],
             "sun_color": sun_col.round(4).tolist(), "shadow": lt.shadow, "specular": lt.specular,
@@ -279,7 +280,8 @@ def _canonical_rbv(skeleton, azimuth_deg: float):
 
 
 # ------------------------------------------------------------------------------ sample
-def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, backgrounds=None) -> Sample:
+def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, backgrounds=None,
+                progress: ProgressCallback | None = None) -> Sample:
     """Generate sample ``index`` of the dataset with global ``seed`` (seed 003 §4.2.1).
 
     Parameters
@@ -289,6 +291,9 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
     options : SampleOptions, optional
     backgrounds : BackgroundPool, optional
         Default: procedural backgrounds only.
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` for the stages grow, leaves, mesh, render, labels,
+        background and rbv.
 
     Returns
     -------
@@ -311,6 +316,7 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
     opts = (options or SampleOptions()).validate()
     if backgrounds is None:
         backgrounds = BackgroundPool()
+    timer = StageTimer(progress)
     rng = sample_rng(seed, index)
     species = str(opts.species_list[int(rng.integers(len(opts.species_list)))])
 
@@ -318,15 +324,18 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
     base = load_species(species)
     params = GrowthParameters.from_dict({"age": max(4, base.age + int(rng.integers(-2, 2)))}, base=base)
     tree_seed = int(rng.integers(2**31))
-    skeleton = grow(params, seed=tree_seed)
+    with timer.stage("grow"):
+        skeleton = grow(params, seed=tree_seed)
     skeleton.meta["species"] = species
     look = load_species_appearance(species)
     leaf_rgb = np.clip(np.asarray(look.leaf_color) * rng.normal(1.0, 0.08, 3) * rng.uniform(0.8, 1.2), 0.02, 1.0)
-    foliage = twig_foliage(skeleton, leaf_color=leaf_rgb, size=look.leaf_size * rng.uniform(0.85, 1.15),
-                           leaves_per_twig=rng.uniform(2.0, 4.0), seed=rng)
+    with timer.stage("leaves"):
+        foliage = twig_foliage(skeleton, leaf_color=leaf_rgb, size=look.leaf_size * rng.uniform(0.85, 1.15),
+                               leaves_per_twig=rng.uniform(2.0, 4.0), seed=rng)
     leaf_k, bark_k = int(rng.integers(_LEAF_VARIANTS)), int(rng.integers(_BARK_VARIANTS))
-    mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[opts.lod], leaf_texture=_leaf_variant(leaf_k)[0],
-                     seed=tree_seed)
+    with timer.stage("mesh"):
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[opts.lod],
+                         leaf_texture=_leaf_variant(leaf_k)[0], seed=tree_seed)
     materials = _materials(mesh, {"bark": bark_k, "leaves": leaf_k}, rng)
 
     # -- camera, lights, render
@@ -334,26 +343,31 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
     pts = [p.positions for p in mesh.parts if p.n_vertices]
     f = int(opts.supersample)
     camera = _frame(np.concatenate(pts).astype(np.float64), azimuth, elevation, fov, opts.size * f, rng)
-    lighting, light_desc = _lighting(rng)
-    renderer = Renderer(camera, samples=1, lighting=lighting)
-    try:
-        res = renderer.render(mesh)
-    finally:
-        renderer.release()
-    part_label = np.array([LABELS["branch"] if p.name == "bark" else LABELS["foliage"] for p in mesh.parts]
-                          + [LABELS["background"]], np.uint8)
-    labels = part_label[res.part]  # part -1 -> the trailing background entry
-    rgba, mask = _downsample(res.color, labels, f)
+    # a shadow-map texel about the size of a rendered pixel (the tree fills most of the frame)
+    lighting, light_desc = _lighting(rng, shadow_resolution=max(256, opts.size * f))
+    with timer.stage("render"):
+        renderer = Renderer(camera, samples=1, lighting=lighting)
+        try:
+            res = renderer.render(mesh)
+        finally:
+            renderer.release()
+    with timer.stage("labels"):
+        part_label = np.array([LABELS["branch"] if p.name == "bark" else LABELS["foliage"] for p in mesh.parts]
+                              + [LABELS["background"]], np.uint8)
+        labels = part_label[res.part]  # part -1 -> the trailing background entry
+        rgba, mask = _downsample(res.color, labels, f)
 
     # -- background, composite, sensor noise
-    bg, bg_desc = backgrounds.sample(opts.size, rng)
-    a = rgba[..., 3:4].astype(np.float64) / 255.0
-    img = rgba[..., :3] * a + bg * (1.0 - a)
-    noise = float(rng.uniform(0.0, 2.5))
-    img = img + rng.normal(0.0, noise, img.shape)
-    image = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    with timer.stage("background"):
+        bg, bg_desc = backgrounds.sample(opts.size, rng)
+        a = rgba[..., 3:4].astype(np.float64) / 255.0
+        img = rgba[..., :3] * a + bg * (1.0 - a)
+        noise = float(rng.uniform(0.0, 2.5))
+        img = img + rng.normal(0.0, noise, img.shape)
+        image = np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
-    rbv, rbv_h, rbv_r = _canonical_rbv(skeleton, azimuth)
+    with timer.stage("rbv"):
+        rbv, rbv_h, rbv_r = _canonical_rbv(skeleton, azimuth)
     cam_out = {"azimuth_deg": round(float(azimuth), 4), "elevation_deg": round(float(elevation), 4),
                "fov_y_deg": round(float(fov), 4), "position": [round(float(x), 5) for x in camera.position],
                "target": [round(float(x), 5) for x in camera.target]}

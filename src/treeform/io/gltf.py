@@ -97,17 +97,10 @@ def _unit_normals(normals: np.ndarray) -> np.ndarray:
 
 
 def _encode_png(texture: np.ndarray) -> bytes:
-    """PNG bytes of an (H, W, 4) uint8 RGBA texture (stored as RGB when fully opaque)."""
-    from PIL import Image
+    """PNG bytes of an (H, W, 4) uint8 RGBA texture (:func:`treeform.io.images.texture_png`)."""
+    from treeform.io.images import texture_png
 
-    tex = np.ascontiguousarray(texture, dtype=np.uint8)
-    if np.all(tex[..., 3] == 255):
-        img = Image.fromarray(np.ascontiguousarray(tex[..., :3]))
-    else:
-        img = Image.fromarray(tex)
-    buf = io.BytesIO()
-    img.save(buf, format="PNG", optimize=False)
-    return buf.getvalue()
+    return texture_png(texture)
 
 
 def _clamp01(x) -> float:

@@ -9,7 +9,9 @@ than :data:`MAX_PIXELS`. Large JPEGs are decoded at a reduced DCT scale
 
 from __future__ import annotations
 
+import threading
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +20,8 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.photo import Photo
 
-__all__ = ["read_photo", "read_mask", "read_rgba", "write_png", "MAX_PIXELS", "MIN_SIDE"]
+__all__ = ["read_photo", "read_mask", "read_rgba", "write_png", "texture_png", "shared_textures", "MAX_PIXELS",
+           "MIN_SIDE"]
 
 MAX_PIXELS = 200_000_000
 """Largest image (width x height) the readers accept; Pillow's own bomb limit is raised to it."""
@@ -347,3 +350,67 @@ def write_png(array, path) -> Path:
     with atomic_path(path) as tmp:
         img.save(tmp, format="PNG")
     return Path(path)
+
+
+_shared_lock = threading.Lock()
+_shared: dict | None = None  # id(texture) -> (texture, done event, [bytes or exception]) inside shared_textures()
+
+
+def _encode_texture(texture: np.ndarray) -> bytes:
+    import io
+
+    Image, _, _ = _pil()
+    tex = np.ascontiguousarray(texture, dtype=np.uint8)
+    img = Image.fromarray(np.ascontiguousarray(tex[..., :3]) if np.all(tex[..., 3] == 255) else tex)
+    buf = io.BytesIO()
+    img.save(buf, format="PNG", compress_level=3)
+    return buf.getvalue()
+
+
+def texture_png(texture: np.ndarray) -> bytes:
+    """PNG bytes of an (H, W, 4) uint8 RGBA texture (stored as RGB when fully opaque).
+
+    Inside :func:`shared_textures` each texture array is encoded once, whichever thread
+    asks first; the others wait for its bytes (the GLB and the OBJ of a tree carry the same
+    textures, and a photo leaf atlas takes a quarter of a second to encode).
+    """
+    if _shared is None:
+        return _encode_texture(texture)
+    with _shared_lock:
+        entry = _shared.get(id(texture))
+        mine = entry is None
+        if mine:
+            entry = _shared[id(texture)] = (texture, threading.Event(), [])
+    _, done, result = entry
+    if mine:
+        try:
+            result.append(_encode_texture(texture))
+        except BaseException as exc:  # the waiting threads see it too
+            result.append(exc)
+            raise
+        finally:
+            done.set()
+    done.wait()
+    if isinstance(result[0], BaseException):
+        raise result[0]
+    return result[0]
+
+
+@contextmanager
+def shared_textures():
+    """Encode each texture once while the block runs (see :func:`texture_png`).
+
+    The arrays are held (so their ids stay theirs) until the block ends; textures must
+    not change inside it.
+    """
+    global _shared
+    with _shared_lock:
+        outer = _shared is not None
+        if not outer:
+            _shared = {}
+    try:
+        yield
+    finally:
+        if not outer:
+            with _shared_lock:
+                _shared = None

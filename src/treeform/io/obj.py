@@ -97,7 +97,7 @@ def write_obj(mesh: Mesh, path, *, colors: str = "bake") -> Path:
     OutputError
         The files cannot be written.
     """
-    from PIL import Image
+    from treeform.io.images import texture_png
 
     if not isinstance(mesh, Mesh):
         raise InputError(f"mesh: expected a treeform Mesh, got {type(mesh).__name__}")
@@ -126,8 +126,7 @@ def write_obj(mesh: Mesh, path, *, colors: str = "bake") -> Path:
         # textures
         for name, m in mats:
             if m.texture is not None:
-                Image.fromarray(np.ascontiguousarray(m.texture, np.uint8)).save(tmp_of[png_paths[name]], format="PNG",
-                                                                               compress_level=3)
+                Path(tmp_of[png_paths[name]]).write_bytes(texture_png(m.texture))
         # MTL
         lines = ["# treeform MTL", ""]
         for name, m in mats:

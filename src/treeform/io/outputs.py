@@ -145,17 +145,26 @@ def write_tree_outputs(out_dir, *, mesh, skeleton, preview, config: dict, metric
     :func:`write_staged`.
     """
     from treeform.io.gltf import write_glb
-    from treeform.io.images import write_png
+    from treeform.io.images import shared_textures, texture_png, write_png
     from treeform.io.obj import write_obj
     from treeform.io.ply import write_skeleton_ply
 
-    return write_staged(out_dir, [
-        lambda d: write_glb(mesh, d / "tree.glb"),
-        lambda d: write_obj(mesh, d / "tree.obj"),
-        lambda d: skeleton.save(d / "skeleton.json"),
-        lambda d: write_skeleton_ply(skeleton, d / "skeleton.ply"),
-        lambda d: write_png(preview, d / "preview.png"),
-        lambda d: write_json(d / "config.json", config),
-        lambda d: write_json(d / "metrics.json", metrics),
-        *extra,
-    ])
+    # every texture encoded once, the biggest first and side by side; GLB and OBJ share the bytes
+    textures = {}
+    for part in mesh.parts:
+        for tex in (part.material.texture, part.material.normal_texture):
+            if tex is not None:
+                textures[id(tex)] = tex
+    encode = [lambda d, t=t: texture_png(t) for t in sorted(textures.values(), key=lambda t: -t.size)]
+    with shared_textures():
+        return write_staged(out_dir, [
+            *encode,
+            lambda d: write_glb(mesh, d / "tree.glb"),
+            lambda d: write_obj(mesh, d / "tree.obj"),
+            lambda d: skeleton.save(d / "skeleton.json"),
+            lambda d: write_skeleton_ply(skeleton, d / "skeleton.ply"),
+            lambda d: write_png(preview, d / "preview.png"),
+            lambda d: write_json(d / "config.json", config),
+            lambda d: write_json(d / "metrics.json", metrics),
+            *extra,
+        ])
