@@ -42,6 +42,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_dataset.py
 	$(PY) benchmarks/bench_cloud.py
 	$(PY) benchmarks/bench_segment.py
+	$(PY) benchmarks/bench_peers.py
 
 # the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill)
 DATA := out/data
