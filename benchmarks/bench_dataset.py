@@ -46,19 +46,30 @@ def throughput(n: int, workers: int) -> tuple[float, float]:
 
 
 def stages(repeat: int = 8) -> dict:
-    """Median seconds per step of one sample (in-process, the one renderer)."""
+    """Median seconds per stage of one sample, in-process with one rasterizer thread (as a worker runs it).
+
+    Stages: grow, leaves, mesh, render, labels (down-sampling), background (composite and
+    sensor noise), rbv, and encode (the PNG / JSON members a worker sends to be written).
+    """
+    import os
+
+    os.environ["LP_NUM_THREADS"] = "1"  # before the GL context exists: the workers' setting
     from treeform.dataset.storage import encode_sample
     from treeform.dataset.synthetic import SampleOptions, make_sample
 
-    make_sample(0, 0, SampleOptions())  # warm-up: GL context, texture variants
-    times = []
+    make_sample(0, 0, SampleOptions())  # warm-up: GL context, texture variants, compiled kernels
+    rows = []
     for i in range(1, repeat + 1):
+        times = {}
         t0 = time.perf_counter()
-        s = make_sample(0, i, SampleOptions())
+        s = make_sample(0, i, SampleOptions(),
+                        progress=lambda stage, event, sec: times.update({stage: sec}) if event == "end" else None)
         t1 = time.perf_counter()
         encode_sample(s)
-        times.append((t1 - t0, time.perf_counter() - t1))
-    return {"make_sample": statistics.median(t[0] for t in times), "encode": statistics.median(t[1] for t in times)}
+        times["encode"] = time.perf_counter() - t1
+        times["total"] = time.perf_counter() - t0
+        rows.append(times)
+    return {k: statistics.median(r[k] for r in rows) for k in rows[0]}
 
 
 def agreement(k: int) -> tuple[list, list]:
@@ -92,8 +103,10 @@ def main():
     k = int(sys.argv[2]) if len(sys.argv) > 2 else 30
     print(f"machine: {machine()}")
     st = stages()
-    print(f"one sample in-process (256², medium LOD, 2x supersampling): make {st['make_sample']:.3f} s, "
-          f"encode {st['encode']:.3f} s (medians of 8)")
+    print("one sample in-process, one rasterizer thread (256², medium LOD, 2x supersampling), medians of 8 (ms):")
+    print("| " + " | ".join(st) + " |")
+    print("|" + "---|" * len(st))
+    print("| " + " | ".join(f"{v * 1000:.1f}" for v in st.values()) + " |")
     print("| workers | samples | end to end (samples/s) | steady state (samples/s) |")
     print("|---|---|---|---|")
     rates = {}
