@@ -499,7 +499,7 @@ def begin_cycle(year, n, n_fixed, pos, parent, nyear, alive, nside, bnode, bq, b
             prob = math.exp(-max(auxin[i] - own[i], 0.0)) * light[i] ** P[P_ALF]
         else:
             prob = lateral_p[i]
-        if not uniform(state) < prob:
+        if prob <= 0.0 or not uniform(state) < prob:  # (no draw where nothing can flush)
             continue
         if low_shoots and not bapical[b] and pos[i, 1] < P[P_LPF]:
             continue
