@@ -91,7 +91,9 @@ def test_apical_dominance_suppresses_lateral_shoots():
         counts.append(np.mean([grow(p, seed=s).n_nodes for s in range(8)]))
         shapes.append(_mean_shape(p))
     assert counts[1] < 0.7 * counts[0]
-    assert abs(shapes[1]["slenderness"] / shapes[0]["slenderness"] - 1) > 0.1  # height / width changes
+    # fewer laterals shade less, so fewer low branches are shed: the crown reaches lower
+    # (over 4 blocks of 8 seeds the crown base falls to 0.38-0.57 of the free-growing tree's)
+    assert shapes[1]["crown_base"] < 0.75 * shapes[0]["crown_base"]
 
 
 def test_apical_control_makes_an_excurrent_tree():
