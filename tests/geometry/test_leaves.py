@@ -165,3 +165,37 @@ def test_conifer_textures_deterministic_and_sized(kind):
         t = leaf_texture(size, seed=1, kind=kind)
         assert t.shape == (size, size, 4)
         assert 0.2 < texture_coverage(t) < (0.6 if size < 128 else 0.5), (size, texture_coverage(t))
+
+
+def _reference_cards(f: Foliage, scale):
+    """The former NumPy leaf_cards: corner positions and normals, float32."""
+    from treeform.geometry.leaves import card_frames
+
+    m = len(f)
+    n, up, right = card_frames(f)
+    half = (0.5 * f.size * np.asarray(scale, np.float64))[:, None]
+    c = f.positions
+    pos = np.stack([c - half * right - half * up, c + half * right - half * up,
+                    c + half * right + half * up, c - half * right + half * up], axis=1)
+    nrm = np.broadcast_to(n[:, None, :], (m, 4, 3))
+    return pos.reshape(-1, 3).astype(np.float32), nrm.reshape(-1, 3).astype(np.float32)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cards_match_the_numpy_reference(seed):
+    rng = np.random.default_rng(seed)
+    f = random_foliage(random_parent_tree(200, seed), 3000, seed=seed)
+    normals = f.normals * rng.uniform(0.01, 10, (len(f), 1))  # not unit length
+    up = f.up.copy()
+    up[:50] = normals[:50] * 3  # up parallel to the normal: the fallback frame
+    normals[:20] = [0, 2.0, 0]  # ... with a normal along y
+    up[:10] = [0, -1.0, 0]
+    f = Foliage(f.positions, normals, up, f.size, f.color, f.node)
+    for scale in (1.0, 1.7, rng.uniform(0.5, 2.0, len(f))):
+        part = leaf_cards(f, size_scale=scale)
+        pos, nrm = _reference_cards(f, scale)
+        assert np.array_equal(part.positions, pos) and np.array_equal(part.normals, nrm)
+    uv = np.sort(rng.uniform(0, 1, (len(f), 2, 2)), axis=1).transpose(0, 2, 1).reshape(-1, 4).astype(np.float32)
+    part = leaf_cards(f.with_colors(f.color, uv=uv))
+    assert np.array_equal(part.uvs.reshape(-1, 4, 2)[:, 0], uv[:, [0, 3]])
+    assert np.array_equal(part.uvs.reshape(-1, 4, 2)[:, 2], uv[:, [2, 1]])

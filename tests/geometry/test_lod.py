@@ -105,3 +105,60 @@ def test_small_trees_and_bad_input():
         tree_mesh(s, f, radial_segments=1)
     with pytest.raises(InputError, match="foliage"):
         tree_mesh(s, "leaves")
+
+
+def _card_area(part) -> float:
+    q = part.positions.reshape(-1, 4, 3).astype(np.float64)
+    return float(np.sum(np.linalg.norm(q[:, 1] - q[:, 0], axis=1) ** 2))
+
+
+@pytest.mark.parametrize("species", ["oak", "pine"])
+def test_foliage_budget_generates_only_what_the_lod_keeps(species):
+    """Clusters generated to the budget's count and size: tree_mesh keeps them all, the crown area stays."""
+    from treeform.geometry import foliage_budget
+    from treeform.growth.leaves import twig_foliage, twig_nodes
+    from treeform.growth.phenomenological import grow
+    from treeform.growth.species import load_species, load_species_appearance
+
+    s, look = grow(load_species(species), seed=1), load_species_appearance(species)
+    n = int(round(3.0 * len(twig_nodes(s))))
+    full = twig_foliage(s, leaf_color=look.leaf_color, size=look.leaf_size, leaves=n, seed=0)
+    for budget in (2_000, 8_000, 20_000, 60_000, None):
+        m, factor = foliage_budget(s, n, max_triangles=budget, radial_segments=8)
+        thinned = tree_mesh(s, full, max_triangles=budget, seed=0)
+        assert m == thinned.parts[-1].n_triangles // 2  # as many as plan_lod keeps of the full foliage
+        assert factor == pytest.approx(np.sqrt(n / m) if m < n else 1.0)
+        f = twig_foliage(s, leaf_color=look.leaf_color, size=look.leaf_size * factor, leaves=m, seed=0)
+        mesh = tree_mesh(s, f, max_triangles=budget, seed=0)
+        assert budget is None or mesh.n_triangles <= budget
+        assert mesh.parts[-1].name == "leaves" and mesh.parts[-1].n_triangles == 2 * m == 2 * len(f)  # all kept
+        assert mesh.parts[0].n_triangles == thinned.parts[0].n_triangles  # the same branches
+        assert _card_area(mesh.parts[-1]) == pytest.approx(_card_area(thinned.parts[-1]), rel=0.03)
+
+
+def test_foliage_budget_always_fits_and_bad_input(big_tree):
+    from treeform.geometry import foliage_budget
+    from treeform.geometry.tubes import _chain_arrays, _chain_measure_flat
+
+    s, f = big_tree
+    nodes, lens = _chain_arrays(s)
+    rad = _chain_measure_flat(s, nodes, lens)
+    for budget in list(range(0, 3_000, 97)) + list(range(3_000, 80_000, 1_013)):
+        for n in (0, 1, 500, len(f)):
+            m, factor = foliage_budget(s, n, max_triangles=budget, radial_segments=8)
+            p = plan_lod(lens, rad, m, max_triangles=budget, radial_segments=8)
+            assert p["keep_leaves"].all() and p["branch_triangles"] + 2 * m <= budget  # the mesh keeps every one
+            assert m <= plan_lod(lens, rad, n, max_triangles=budget)["keep_leaves"].sum()
+            assert factor == (np.sqrt(n / m) if 0 < m < n else 1.0)
+    assert foliage_budget(s, 123, max_triangles=None) == (123, 1.0)
+    assert foliage_budget(y_tree(), 10, max_triangles=0) == (0, 1.0)
+    with pytest.raises(InputError, match="max_triangles"):
+        foliage_budget(s, 10, max_triangles=-1)
+    with pytest.raises(InputError, match="n_leaves"):
+        foliage_budget(s, -1, max_triangles=10)
+    with pytest.raises(InputError, match="n_leaves"):
+        foliage_budget(s, 2.5, max_triangles=10)
+    with pytest.raises(InputError, match="radial_segments"):
+        foliage_budget(s, 10, max_triangles=10, radial_segments=2)
+    with pytest.raises(InputError, match="skeleton"):
+        foliage_budget("tree", 10, max_triangles=10)

@@ -241,3 +241,20 @@ def test_bark_texture():
     assert inner_y < inner_x
     with pytest.raises(InputError, match="size"):
         bark_texture(4)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_compiled_chains_are_skeleton_chains(seed):
+    """tubes._chain_arrays (compiled) = TreeSkeleton.chains() (the Python walk): same chains, same order."""
+    from treeform.geometry.tubes import _chain_arrays
+
+    rng = np.random.default_rng(seed)
+    n = [1, 2, 7, 60, 500, 3000, 40, 900][seed]
+    parent = np.concatenate([[-1], (rng.random(n - 1) * np.arange(1, n)).astype(np.int64)])
+    # few distinct radii and orders: ties decide the main child
+    s = TreeSkeleton(rng.normal(size=(n, 3)), parent, rng.integers(0, 3, n) * 0.01, rng.integers(0, 2, n))
+    for sk in (s, grown_tree(300 + 100 * seed, seed=seed)):
+        chains = sk.chains()
+        nodes, lens = _chain_arrays(sk)
+        assert lens.tolist() == [len(c) for c in chains]
+        assert np.array_equal(nodes, np.concatenate(chains))

@@ -117,6 +117,22 @@ def test_leaf_count_options():
     assert len(res.foliage) == 0 and res.mesh.n_triangles > 0
 
 
+def test_budget_generates_only_the_kept_leaves():
+    # pine at 20k triangles: the LOD would keep a fraction of the full foliage, so only that is generated
+    from treeform.growth.leaves import twig_nodes
+
+    low = grow_tree("pine", seed=0, lod="low", previews=False)
+    full = grow_tree("pine", seed=0, lod="full", previews=False)
+    n_full = int(round(3.0 * len(twig_nodes(full.skeleton))))
+    assert len(full.foliage) == n_full and 0 < len(low.foliage) < n_full
+    assert low.metrics["leaves"] == len(low.foliage) and low.metrics["triangles"] <= 20_000
+    leaves = next(p for p in low.mesh.parts if p.name == "leaves")
+    assert leaves.n_triangles == 2 * len(low.foliage)  # the mesh keeps every generated cluster
+    factor = np.median(low.foliage.size) / np.median(full.foliage.size)
+    assert factor == pytest.approx(np.sqrt(n_full / len(low.foliage)), rel=0.05)  # enlarged as the LOD would
+    assert leaves.material.texture.shape == next(p for p in full.mesh.parts if p.name == "leaves").material.texture.shape
+
+
 def test_overrides_and_config():
     res = grow_tree("birch", seed=0, config=GrowConfig(leaves_per_twig=1.0), growth_rate=2.0, **FAST)
     assert res.parameters.growth_rate == 2.0 and res.parameters.age == 6

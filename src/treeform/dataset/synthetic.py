@@ -307,8 +307,8 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
         No OpenGL context.
     """
     from treeform.dataset.backgrounds import BackgroundPool
-    from treeform.geometry import LOD_PRESETS, tree_mesh
-    from treeform.growth.leaves import twig_foliage
+    from treeform.geometry import LOD_PRESETS, foliage_budget, tree_mesh
+    from treeform.growth.leaves import twig_foliage, twig_nodes
     from treeform.growth.phenomenological import GrowthParameters, grow
     from treeform.growth.species import SPECIES, load_species, load_species_appearance
     from treeform.render import Renderer
@@ -330,8 +330,12 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
     look = load_species_appearance(species)
     leaf_rgb = np.clip(np.asarray(look.leaf_color) * rng.normal(1.0, 0.08, 3) * rng.uniform(0.8, 1.2), 0.02, 1.0)
     with timer.stage("leaves"):
-        foliage = twig_foliage(skeleton, leaf_color=leaf_rgb, size=look.leaf_size * rng.uniform(0.85, 1.15),
-                               leaves_per_twig=rng.uniform(2.0, 4.0), seed=rng)
+        leaf_size, per_twig = look.leaf_size * rng.uniform(0.85, 1.15), rng.uniform(2.0, 4.0)
+        n_leaves = int(round(per_twig * len(twig_nodes(skeleton))))
+        if LOD_PRESETS[opts.lod] is not None:  # only the clusters the budget keeps, enlarged as the LOD would
+            n_leaves, factor = foliage_budget(skeleton, n_leaves, max_triangles=LOD_PRESETS[opts.lod])
+            leaf_size *= factor
+        foliage = twig_foliage(skeleton, leaf_color=leaf_rgb, size=leaf_size, leaves=n_leaves, seed=rng)
     leaf_k, bark_k = int(rng.integers(_LEAF_VARIANTS)), int(rng.integers(_BARK_VARIANTS))
     with timer.stage("mesh"):
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[opts.lod],

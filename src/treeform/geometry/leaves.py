@@ -338,22 +338,21 @@ def leaf_cards(foliage: Foliage, *, texture=None, size_scale: float = 1.0) -> Me
     if scale.ndim not in (0, 1) or (scale.ndim == 1 and len(scale) != m) or not np.all(np.isfinite(scale)) \
             or np.any(scale <= 0):
         raise InputError(f"size_scale: expected a positive number or an array of {m} positive numbers")
-    n, up, right = card_frames(foliage)
-    half = (0.5 * foliage.size * scale)[:, None]
-    c = foliage.positions
-    # corners: 0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left
-    pos = np.stack([c - half * right - half * up, c + half * right - half * up,
-                    c + half * right + half * up, c - half * right + half * up], axis=1)
+    from treeform.geometry._kernels import card_corners
+
+    half = np.ascontiguousarray(np.broadcast_to(0.5 * foliage.size * scale, (m,)), np.float64)
+    # the frames of card_frames and the corners (0 bottom-left, 1 bottom-right, 2 top-right,
+    # 3 top-left: c -+ half·right -+ half·up), compiled
+    pos, nrm, ok = card_corners(foliage.positions, foliage.normals, foliage.up, half)
+    if not ok:
+        raise InputError("foliage.normals: contains a zero-length normal")
     if foliage.uv is None:
-        uv = np.broadcast_to(np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], np.float32), (m, 4, 2))
+        uv = np.tile(np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]], np.float32), (m, 1))
     else:  # each card its own rectangle (u0, v0, u1, v1) of an atlas
         r = foliage.uv
-        uv = np.stack([r[:, [0, 3]], r[:, [2, 3]], r[:, [2, 1]], r[:, [0, 1]]], axis=1)
-    nrm = np.broadcast_to(n[:, None, :], (m, 4, 3))
+        uv = np.stack([r[:, [0, 3]], r[:, [2, 3]], r[:, [2, 1]], r[:, [0, 1]]], axis=1).reshape(-1, 2)
     col = np.empty((m, 4, 4), np.float32)
     col[..., :3] = foliage.color[:, None, :]
     col[..., 3] = 1.0
-    base = (4 * np.arange(m, dtype=np.int64))[:, None]
-    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=1).reshape(-1, 3)
-    return MeshPart(pos.reshape(-1, 3).astype(np.float32), nrm.reshape(-1, 3).astype(np.float32),
-                    uv.reshape(-1, 2), col.reshape(-1, 4), faces.astype(np.uint32), material, "leaves")
+    faces = (4 * np.arange(m, dtype=np.uint32))[:, None] + np.array([0, 1, 2, 0, 2, 3], np.uint32)
+    return MeshPart(pos, nrm, uv, col.reshape(-1, 4), faces.reshape(-1, 3), material, "leaves")

@@ -12,7 +12,7 @@ from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Mesh
 from treeform.structures.skeleton import TreeSkeleton
 
-__all__ = ["LOD_PRESETS", "MIN_RADIAL_SEGMENTS", "plan_lod", "tree_mesh"]
+__all__ = ["LOD_PRESETS", "MIN_RADIAL_SEGMENTS", "foliage_budget", "plan_lod", "tree_mesh"]
 
 LOD_PRESETS = {"low": 20_000, "medium": 60_000, "high": 200_000, "full": None}
 """Named ``max_triangles`` budgets for :func:`tree_mesh` (``None``: no limit)."""
@@ -57,6 +57,20 @@ def plan_lod(chain_lengths, chain_radius, n_leaves: int, *, max_triangles=None, 
         ``radial_segments`` (int), ``keep_chains`` (C,) bool, ``keep_leaves`` (M,) bool,
         ``leaf_scale`` (float), ``branch_triangles`` and ``leaf_triangles`` (int).
     """
+    plan = _plan(chain_lengths, chain_radius, n_leaves, max_triangles, radial_segments)
+    m_keep = plan.pop("m_keep")
+    keep_leaves = np.ones(n_leaves, bool)
+    if m_keep < n_leaves:  # (3) a deterministic random subset of the leaves, enlarged
+        keep_leaves[:] = False
+        if m_keep:
+            keep_leaves[np.sort(as_rng(seed).permutation(n_leaves)[:m_keep])] = True
+            plan["leaf_scale"] = float(np.sqrt(n_leaves / m_keep))
+    plan["keep_leaves"] = keep_leaves
+    return plan
+
+
+def _plan(chain_lengths, chain_radius, n_leaves: int, max_triangles, radial_segments: int) -> dict:
+    """:func:`plan_lod` up to the choice of the kept leaves: their number is ``m_keep``; no ``keep_leaves``."""
     lens = np.asarray(chain_lengths, np.int64).reshape(-1)
     rad = np.asarray(chain_radius, np.float64).reshape(-1)
     n_chains = len(lens)
@@ -64,8 +78,7 @@ def plan_lod(chain_lengths, chain_radius, n_leaves: int, *, max_triangles=None, 
     units = _chain_units(lens, root)
     segs = int(radial_segments)
     keep_chains = np.ones(n_chains, bool)
-    keep_leaves = np.ones(n_leaves, bool)
-    plan = {"radial_segments": segs, "keep_chains": keep_chains, "keep_leaves": keep_leaves, "leaf_scale": 1.0}
+    plan = {"radial_segments": segs, "keep_chains": keep_chains, "leaf_scale": 1.0, "m_keep": int(n_leaves)}
     total_units = int(units.sum())
     leaf_tris = 2 * n_leaves
     if max_triangles is None or segs * total_units + leaf_tris <= max_triangles:
@@ -91,15 +104,69 @@ def plan_lod(chain_lengths, chain_radius, n_leaves: int, *, max_triangles=None, 
         k = int(np.searchsorted(segs * dropped, need)) + 1  # smallest k with segs*dropped[k-1] >= need
         keep_chains[order[:k]] = False
     branch_tris = segs * int(units[keep_chains].sum())
-    # (3) thin the leaves into what is left
+    # (3) the leaves that fit into what is left
     m_keep = int(min(n_leaves, max(budget - branch_tris, 0) // 2))
-    if m_keep < n_leaves:
-        keep_leaves[:] = False
-        if m_keep:
-            keep_leaves[np.sort(as_rng(seed).permutation(n_leaves)[:m_keep])] = True
-            plan["leaf_scale"] = float(np.sqrt(n_leaves / m_keep))
-    plan.update(branch_triangles=branch_tris, leaf_triangles=2 * m_keep)
+    plan.update(branch_triangles=branch_tris, leaf_triangles=2 * m_keep, m_keep=m_keep)
     return plan
+
+
+def foliage_budget(skeleton: TreeSkeleton, n_leaves: int, *, max_triangles, radial_segments: int = 8) -> tuple[int, float]:
+    """How many leaf clusters a triangle budget keeps, and how much to enlarge them: don't build what the LOD drops.
+
+    :func:`tree_mesh` with ``max_triangles`` keeps ``M_kept`` of ``M`` leaves (:func:`plan_lod`)
+    and enlarges them by ``sqrt(M / M_kept)``. Generating only ``M_kept`` clusters of that
+    size in the first place gives the same crown coverage for a fraction of the work, and
+    :func:`tree_mesh` with the same budget then keeps every one of them (``M_kept`` is
+    lowered until it does).
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    n_leaves : int
+        ``M``, the leaf clusters of the full-detail tree.
+    max_triangles : int or None
+        The budget :func:`tree_mesh` will get (None: no limit).
+    radial_segments : int
+        As for :func:`tree_mesh`.
+
+    Returns
+    -------
+    n_kept : int
+        ``M_kept`` (``M`` when everything fits, 0 when no leaf does).
+    size_factor : float
+        ``sqrt(M / M_kept)``; 1.0 when nothing is dropped or nothing kept.
+
+    Examples
+    --------
+    >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0.]]), np.array([-1, 0]), np.array([0.1, 0.05]))
+    >>> n, factor = foliage_budget(s, 100, max_triangles=100)
+    >>> n, round(factor, 4), foliage_budget(s, 100, max_triangles=None)
+    (44, 1.5076, (100, 1.0))
+    """
+    if not isinstance(skeleton, TreeSkeleton):
+        raise InputError(f"skeleton: expected a TreeSkeleton, got {type(skeleton).__name__}")
+    if isinstance(n_leaves, bool) or not isinstance(n_leaves, (int, np.integer)) or n_leaves < 0:
+        raise InputError(f"n_leaves: expected a non-negative integer, got {n_leaves!r}")
+    _check_budget(max_triangles)
+    segs = _tubes._check_segments(radial_segments)
+    n = int(n_leaves)
+    if max_triangles is None or n == 0:
+        return n, 1.0
+    nodes, lens = _tubes._chain_arrays(skeleton)
+    rad = _tubes._chain_measure_flat(skeleton, nodes, lens)
+    m = _plan(lens, rad, n, max_triangles, segs)["m_keep"]
+    while 0 < m < n:  # fewer leaves can leave the branches more room; take as many as then fit
+        fit = _plan(lens, rad, m, max_triangles, segs)["m_keep"]
+        if fit == m:
+            break
+        m = fit
+    return m, (float(np.sqrt(n / m)) if 0 < m < n else 1.0)
+
+
+def _check_budget(max_triangles) -> None:
+    if max_triangles is not None:
+        if isinstance(max_triangles, bool) or not isinstance(max_triangles, (int, np.integer)) or max_triangles < 0:
+            raise InputError(f"max_triangles: expected a non-negative integer or None, got {max_triangles!r}")
 
 
 def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=None, radial_segments: int = 8,
@@ -151,20 +218,17 @@ def tree_mesh(skeleton: TreeSkeleton, foliage: Foliage | None, *, max_triangles=
         foliage = Foliage.empty()
     if not isinstance(foliage, Foliage):
         raise InputError(f"foliage: expected a Foliage or None, got {type(foliage).__name__}")
-    if max_triangles is not None:
-        if isinstance(max_triangles, bool) or not isinstance(max_triangles, (int, np.integer)) or max_triangles < 0:
-            raise InputError(f"max_triangles: expected a non-negative integer or None, got {max_triangles!r}")
+    _check_budget(max_triangles)
     segs = _tubes._check_segments(radial_segments)
     rng = as_rng(seed)
     tex_seed = int(rng.integers(2**31)) if isinstance(seed, np.random.Generator) else int(seed or 0)
 
-    chains = skeleton.chains()
-    lens = np.fromiter((len(c) for c in chains), np.int64, len(chains))
-    plan = plan_lod(lens, _tubes._chain_measure(skeleton, chains), len(foliage), max_triangles=max_triangles,
-                    radial_segments=segs, seed=rng)
+    nodes, lens = _tubes._chain_arrays(skeleton)
+    plan = plan_lod(lens, _tubes._chain_measure_flat(skeleton, nodes, lens), len(foliage),
+                    max_triangles=max_triangles, radial_segments=segs, seed=rng)
     keep = plan["keep_chains"]
-    root_flags = np.arange(len(chains)) == 0
-    bark = _tubes._tubes(skeleton, [c for c, k in zip(chains, keep) if k], root_flags[keep],
+    root_flags = np.arange(len(lens)) == 0
+    bark = _tubes._tubes(skeleton, nodes[np.repeat(keep, lens)], lens[keep], root_flags[keep],
                          plan["radial_segments"], cap_starts=False, material=_tubes.bark_material(bark_texture, bark_normal))
     parts = [bark] if bark.n_triangles else []
     kept = plan["keep_leaves"]

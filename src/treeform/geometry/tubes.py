@@ -184,12 +184,29 @@ def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- chains
+def _chain_arrays(skeleton: TreeSkeleton) -> tuple[np.ndarray, np.ndarray]:
+    """``skeleton.chains()`` as two flat arrays, ``(nodes, lengths)``: the same chains in the same order.
+
+    A compiled walk (:func:`treeform.geometry._kernels.chain_layout`), so a large tree's chains
+    take well under a millisecond instead of the tens of the Python loop.
+    """
+    from treeform.geometry._kernels import chain_layout
+
+    return chain_layout(skeleton.parent, skeleton.order, skeleton.radius)
+
+
 def _chain_measure(skeleton: TreeSkeleton, chains: list) -> np.ndarray:
     """(C,) thickness of each chain: the largest radius of its own nodes (not the parent node)."""
-    if not chains:
+    if not len(chains):
         return np.zeros(0)
     lens = np.fromiter((len(c) for c in chains), np.int64, len(chains))
-    flat = np.concatenate(chains)
+    return _chain_measure_flat(skeleton, np.concatenate(chains), lens)
+
+
+def _chain_measure_flat(skeleton: TreeSkeleton, flat: np.ndarray, lens: np.ndarray) -> np.ndarray:
+    """:func:`_chain_measure` of chains given as :func:`_chain_arrays` (``flat`` nodes, ``lens`` per chain)."""
+    if not len(lens):
+        return np.zeros(0)
     start = np.cumsum(lens) - lens
     own = np.ones(len(flat), bool)
     own[start[1:]] = lens[1:] < 2  # a side chain's first node belongs to its parent
@@ -276,13 +293,13 @@ def branch_mesh(skeleton: TreeSkeleton, *, radial_segments: int = 8, min_radius:
         raise InputError(f"skeleton: expected a TreeSkeleton, got {type(skeleton).__name__}")
     segs = _check_segments(radial_segments)
     min_radius = check_positive(min_radius, "min_radius", allow_zero=True)
-    chains = skeleton.chains()
-    root_flags = np.arange(len(chains)) == 0
-    if min_radius > 0 and chains:
-        keep = _chain_measure(skeleton, chains) >= min_radius
-        chains = [c for c, k in zip(chains, keep) if k]
-        root_flags = root_flags[keep]
-    return _tubes(skeleton, chains, root_flags, segs, cap_starts=cap_starts, material=bark_material(bark_texture))
+    nodes, lens = _chain_arrays(skeleton)
+    root_flags = np.arange(len(lens)) == 0
+    if min_radius > 0:
+        keep = _chain_measure_flat(skeleton, nodes, lens) >= min_radius
+        nodes, lens, root_flags = nodes[np.repeat(keep, lens)], lens[keep], root_flags[keep]
+    return _tubes(skeleton, nodes, lens, root_flags, segs, cap_starts=cap_starts,
+                  material=bark_material(bark_texture))
 
 
 def _empty_part(material: Material, name: str) -> MeshPart:
@@ -291,21 +308,20 @@ def _empty_part(material: Material, name: str) -> MeshPart:
                     np.zeros((0, 3), np.uint32), material, name)
 
 
-def _tubes(skeleton: TreeSkeleton, chains: list, root_flags: np.ndarray, segs: int, *,
+def _tubes(skeleton: TreeSkeleton, nodes: np.ndarray, lens: np.ndarray, root_flags: np.ndarray, segs: int, *,
            cap_starts: bool, material: Material) -> MeshPart:
-    """Mesh the given chains (list of node-index arrays); ``root_flags`` marks root chains."""
-    if chains:
-        lens_all = np.fromiter((len(c) for c in chains), np.int64, len(chains))
-        use = lens_all >= 2
-        chains = [c for c, u in zip(chains, use) if u]
-        root_flags = np.asarray(root_flags, bool)[use]
-    if not chains:
+    """Mesh the given chains, as :func:`_chain_arrays` gives them (``nodes`` concatenated, ``lens`` per chain);
+    ``root_flags`` marks root chains."""
+    lens = np.asarray(lens, np.int64)
+    root_flags = np.asarray(root_flags, bool)
+    use = lens >= 2
+    if not np.all(use):
+        nodes, lens, root_flags = nodes[np.repeat(use, lens)], lens[use], root_flags[use]
+    if not len(lens):
         return _empty_part(material, "bark")
 
-    lens = np.fromiter((len(c) for c in chains), np.int64, len(chains))
-    nodes = np.concatenate(chains)
     n_rings = len(nodes)
-    n_chains = len(chains)
+    n_chains = len(lens)
     start = np.cumsum(lens) - lens
     chain_of = np.repeat(np.arange(n_chains), lens)
     pos_in = np.arange(n_rings) - start[chain_of]

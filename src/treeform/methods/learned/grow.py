@@ -4,12 +4,15 @@ Each stage is one call into a domain folder: :func:`treeform.growth.phenomenolog
 (skeleton), :func:`treeform.growth.leaves.twig_foliage` (leaf clusters on the twigs),
 :func:`treeform.geometry.tree_mesh` (bark tubes + leaf cards under a triangle budget),
 :class:`treeform.render.Renderer` (previews) and :mod:`treeform.io` (files, written
-atomically: a staging folder, then renames).
+atomically: a staging folder, then renames). Under a triangle budget (``lod`` other than
+``"full"``) only the leaf clusters the budget keeps are generated, enlarged as the LOD would
+enlarge a thinned crown (:func:`treeform.geometry.foliage_budget`), so ``leaves`` in the
+metrics counts those.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -218,18 +221,27 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
                                     seed=cfg.seed)
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
-        from treeform.growth.leaves import twig_foliage
+        from treeform.geometry import LOD_PRESETS, foliage_budget
+        from treeform.growth.leaves import twig_foliage, twig_nodes
 
-        foliage = twig_foliage(skeleton, leaf_color=look.leaf_color, size=cfg.leaf_size or look.leaf_size,
-                               leaves=cfg.leaves, leaves_per_twig=cfg.leaves_per_twig, twig_tips=cfg.twig_tips,
-                               seed=rng)
+        n_leaves, leaf_size, factor = cfg.leaves, cfg.leaf_size or look.leaf_size, 1.0
+        if LOD_PRESETS[cfg.lod] is not None:  # generate only the clusters the budget keeps, enlarged as the LOD would
+            if n_leaves is None:
+                n_leaves = int(round(cfg.leaves_per_twig * len(twig_nodes(skeleton, cfg.twig_tips))))
+            n_leaves, factor = foliage_budget(skeleton, n_leaves, max_triangles=LOD_PRESETS[cfg.lod],
+                                              radial_segments=cfg.radial_segments)
+            leaf_size *= factor
+        foliage = twig_foliage(skeleton, leaf_color=look.leaf_color, size=leaf_size, leaves=n_leaves,
+                               leaves_per_twig=cfg.leaves_per_twig, twig_tips=cfg.twig_tips, seed=rng)
         skeleton.meta["n_leaves"] = len(foliage)  # so `treeform metrics` on the files reports the count
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
         from treeform.geometry.textures import bark_normals
 
         kind = look.leaf_type if cfg.foliage == "auto" else cfg.foliage
-        bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=kind, texture_size=cfg.texture_size,
+        # the leaf texture is sized for the species' cards, not the budget's enlarged ones (as before the budget step)
+        sized = foliage if factor == 1.0 else replace(foliage, size=foliage.size / factor)
+        bark_tex, leaf_tex = tree_textures(skeleton, sized, foliage_kind=kind, texture_size=cfg.texture_size,
                                            seed=cfg.seed)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
                          leaf_texture=leaf_tex, bark_texture=bark_tex,
