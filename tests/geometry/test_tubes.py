@@ -258,3 +258,30 @@ def test_compiled_chains_are_skeleton_chains(seed):
         nodes, lens = _chain_arrays(sk)
         assert lens.tolist() == [len(c) for c in chains]
         assert np.array_equal(nodes, np.concatenate(chains))
+
+
+def test_compiled_rotation_scan_is_the_numpy_scan():
+    """_kernels.prefix_rotations = the former vectorized Hillis-Steele passes, to the bit."""
+    from treeform.geometry._kernels import prefix_rotations
+
+    def qmul(a, b):
+        aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+        bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+        return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                         aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+    rng = np.random.default_rng(0)
+    lens = rng.integers(1, 70, 300)
+    start = np.cumsum(lens) - lens
+    pos_in = np.arange(lens.sum()) - np.repeat(start, lens)
+    q = rng.normal(size=(lens.sum(), 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    ref, step = q.copy(), 1
+    while step < lens.max():
+        m = np.flatnonzero(pos_in >= step)
+        nxt = ref.copy()
+        nxt[m] = qmul(ref[m], ref[m - step])
+        nxt[m] /= np.linalg.norm(nxt[m], axis=1, keepdims=True)
+        ref, step = nxt, step * 2
+    prefix_rotations(q, pos_in, int(lens.max()))
+    assert np.array_equal(q, ref)

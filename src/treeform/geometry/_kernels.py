@@ -139,3 +139,29 @@ def card_corners(positions: np.ndarray, normals: np.ndarray, up: np.ndarray, hal
         for j in range(4):
             nrm[k + j, 0], nrm[k + j, 1], nrm[k + j, 2] = n0, n1, n2
     return pos, nrm, True
+
+
+@nb.njit(cache=True, nogil=True)
+def prefix_rotations(q: np.ndarray, pos_in: np.ndarray, max_len: int) -> None:
+    """In place: each ring's rotation becomes the product of its chain's rotations up to it.
+
+    The segmented Hillis-Steele scan of :func:`treeform.geometry.tubes._tubes`, pass for pass
+    and operation for operation (the same bits): for ``step = 1, 2, 4, ... < max_len`` every
+    ring ``k`` with ``pos_in[k] >= step`` takes ``normalize(q[k] · q[k - step])`` (later rotations
+    on the left) of the previous pass; going down the rings lets one array hold both passes.
+    """
+    step = 1
+    while step < max_len:
+        for k in range(q.shape[0] - 1, -1, -1):
+            if pos_in[k] < step:
+                continue
+            aw, ax, ay, az = q[k, 0], q[k, 1], q[k, 2], q[k, 3]
+            j = k - step
+            bw, bx, by, bz = q[j, 0], q[j, 1], q[j, 2], q[j, 3]
+            w = aw * bw - ax * bx - ay * by - az * bz
+            x = aw * bx + ax * bw + ay * bz - az * by
+            y = aw * by - ax * bz + ay * bw + az * bx
+            z = aw * bz + ax * by - ay * bx + az * bw
+            n = np.sqrt(w * w + x * x + y * y + z * z)
+            q[k, 0], q[k, 1], q[k, 2], q[k, 3] = w / n, x / n, y / n, z / n
+        step *= 2

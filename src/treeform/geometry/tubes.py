@@ -9,7 +9,8 @@ Tips end in a short cone, the root in a flat fan.
 
 Everything is vectorized over all rings of all chains at once; the only sequential step, the
 accumulation of frame rotations along a chain, is a segmented parallel prefix scan over
-quaternions (``log2(longest chain)`` vectorized passes).
+quaternions (``log2(longest chain)`` passes, compiled with numba). The chains themselves come
+from a compiled walk (:func:`_chain_arrays`, the same as :meth:`TreeSkeleton.chains`).
 """
 
 from __future__ import annotations
@@ -140,18 +141,6 @@ def bark_material(texture=None, normal_texture=None) -> Material:
 
 
 # --------------------------------------------------------------------------- quaternions
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (..., 4) quaternions stored as (w, x, y, z)."""
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
-
-
 def _qrotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate (..., 3) vectors ``v`` by unit quaternions ``q`` (..., 4)."""
     w = q[..., :1]
@@ -367,15 +356,11 @@ def _tubes(skeleton: TreeSkeleton, nodes: np.ndarray, lens: np.ndarray, root_fla
     Q[:, 0] = 1.0
     nf = ~first
     Q[nf] = _min_rotation(T[np.flatnonzero(nf) - 1], T[nf])
-    step = 1
-    max_len = int(lens.max())
-    while step < max_len:
-        m = np.flatnonzero(pos_in >= step)
-        Qn = Q.copy()
-        Qn[m] = _qmul(Q[m], Q[m - step])  # later rotations on the left
-        Qn[m] /= np.linalg.norm(Qn[m], axis=1, keepdims=True)
-        Q = Qn
-        step *= 2
+    # segmented prefix scan, log2(longest chain) passes: Q[k] <- Q[k] · Q[k - step] (later rotations
+    # on the left) where the chain reaches back that far; compiled
+    from treeform.geometry._kernels import prefix_rotations
+
+    prefix_rotations(Q, pos_in, int(lens.max()))
     U0 = _any_perpendicular(T[start])
     U = _qrotate(Q, U0[chain_of])
     U -= np.sum(U * T, axis=1, keepdims=True) * T
