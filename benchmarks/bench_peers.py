@@ -64,10 +64,12 @@ def treeform_tree(species: str, budget: int, seed: int = 0) -> tuple[dict[str, f
     """Grow + leaves + mesh of one ``species`` tree within ``budget`` triangles.
 
     Returns the wall seconds of each stage (``{"grow", "leaves", "mesh"}``) and the mesh's
-    triangle count. Geometry only: no texture synthesis, no rendering.
+    triangle count. Geometry only: no texture synthesis, no rendering. As ``treeform grow``
+    does under a budget, only the leaf clusters the budget keeps are generated, enlarged as
+    the LOD would enlarge a thinned crown (:func:`treeform.geometry.foliage_budget`).
     """
-    from treeform.geometry import tree_mesh
-    from treeform.growth.leaves import twig_foliage
+    from treeform.geometry import foliage_budget, tree_mesh
+    from treeform.growth.leaves import twig_foliage, twig_nodes
     from treeform.growth.phenomenological import grow
     from treeform.growth.species import load_species, load_species_appearance
 
@@ -75,8 +77,9 @@ def treeform_tree(species: str, budget: int, seed: int = 0) -> tuple[dict[str, f
     t0 = time.perf_counter()
     sk = grow(p, seed=seed)
     t1 = time.perf_counter()
-    fol = twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size, leaves_per_twig=3.0,
-                       twig_tips=4, seed=seed)
+    n, factor = foliage_budget(sk, int(round(3.0 * len(twig_nodes(sk, 4)))), max_triangles=budget, radial_segments=8)
+    fol = twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size * factor, leaves=n, twig_tips=4,
+                       seed=seed)
     t2 = time.perf_counter()
     m = tree_mesh(sk, fol, max_triangles=budget, radial_segments=8, seed=seed)
     t3 = time.perf_counter()

@@ -76,7 +76,7 @@ def test_scenes_are_deterministic_and_labelled(sprites):
         a, la = scene(sprites, kind, 1)
         b, lb = scene(sprites, kind, 1)
         assert np.array_equal(a, b) and np.array_equal(la, lb)
-        assert (la > 0).mean() > (0.002 if kind == "winter" else 0.02)  # a bare tree is thin
+        assert (la > 0).mean() > (0.001 if kind == "winter" else 0.02)  # a bare tree is thin (its wood: ~0.16 %)
     assert not (scene(sprites, "winter", 0)[1] == 1).any()  # bare: no foliage
 
 
