@@ -143,6 +143,15 @@ def spread(order, parent, flags):
 
 
 @nb.njit(**_JIT)
+def shed(order, parent, alive, cut):
+    """Every node in the subtree of a ``cut`` node dies (``alive`` updated in place)."""
+    dead = spread(order, parent, cut)
+    for i in order:
+        if dead[i]:
+            alive[i] = False
+
+
+@nb.njit(**_JIT)
 def branch_levels(order, parent, weight, n):
     """Branch level of every node and which nodes start a lateral branch.
 
@@ -445,10 +454,7 @@ def begin_cycle(year, n, n_fixed, pos, parent, nyear, alive, nside, bnode, bq, b
                 cut[i] = True
                 any_cut = True
         if any_cut:
-            dead = spread(order, parent, cut)
-            for i in order:
-                if dead[i]:
-                    alive[i] = False
+            shed(order, parent, alive, cut)
             order = alive_order(alive, n)
 
     # bud fate: death by chance and by age
@@ -670,7 +676,4 @@ def prune_low(n, n_fixed, pos, parent, alive, low_height):
             cut[i] = True
             any_cut = True
     if any_cut:
-        dead = spread(order, parent, cut)
-        for i in order:
-            if dead[i]:
-                alive[i] = False
+        shed(order, parent, alive, cut)
