@@ -94,9 +94,19 @@ def _random_tree(n, seed):
     return TreeSkeleton(pos, parent, order=(np.arange(n) > 0) * rng.integers(0, 3, n))
 
 
-def _same(a: Foliage, b: Foliage):
-    for k in ("positions", "normals", "up", "size", "color", "node"):
+def _same(a: Foliage, b: Foliage, keys=("positions", "normals", "up", "size", "color", "node")):
+    for k in keys:
         assert np.array_equal(getattr(a, k), getattr(b, k)), k
+
+
+def _on_own_twig(sk, f: Foliage, twig_tips: int, size: float):
+    """Each cluster's node is a twig, and the cluster lies by that twig's internode (offset σ = size / 3)."""
+    assert np.isin(f.node, L.twig_nodes(sk, twig_tips)).all()
+    a, b = sk.positions[sk.parent[f.node]], sk.positions[f.node]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", f.positions - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    d = np.linalg.norm(f.positions - (a + t[:, None] * ab), axis=1)
+    assert np.percentile(d, 99) < 5 * size / 3 + size / 2
 
 
 @pytest.fixture(scope="module")
@@ -149,10 +159,27 @@ def test_attach_leaves_matches_the_former_code(oak):
 
 def test_twig_foliage_matches_the_former_code(oak):
     sk, look = oak
+    # the same cards as the former code; the node is now the twig each cluster was scattered
+    # around (the former code searched for the nearest twig, which only named it differently)
+    keys = ("positions", "normals", "up", "size", "color")
     for kw in (dict(leaves_per_twig=3.0, seed=0), dict(leaves=777, seed=3, twig_tips=2), dict(leaves=5, seed=1)):
-        _same(L.twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size, **kw),
-              _ref_twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size, **kw))
+        f = L.twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size, **kw)
+        _same(f, _ref_twig_foliage(sk, leaf_color=look.leaf_color, size=look.leaf_size, **kw), keys)
+        _on_own_twig(sk, f, kw.get("twig_tips", 4), look.leaf_size)
     small = _random_tree(300, 4)
-    _same(L.twig_foliage(small, leaf_color=[0.2, 0.5, 0.1], size=0.2, seed=2),
-          _ref_twig_foliage(small, leaf_color=[0.2, 0.5, 0.1], size=0.2, seed=2))
+    f = L.twig_foliage(small, leaf_color=[0.2, 0.5, 0.1], size=0.2, seed=2)
+    _same(f, _ref_twig_foliage(small, leaf_color=[0.2, 0.5, 0.1], size=0.2, seed=2), keys)
+    _on_own_twig(small, f, 4, 0.2)
     assert len(L.twig_foliage(TreeSkeleton(np.zeros((1, 3)), [-1]), leaf_color=[0.2, 0.5, 0.1], size=0.2)) == 0
+
+
+def test_attach_leaves_takes_known_twigs_and_checks_them(oak):
+    sk, _ = oak
+    pts = sk.positions[[5, 9, 11]] + 0.1
+    f = L.attach_leaves(sk, pts, size=0.3, center=[0, 5, 0], nodes=np.array([5, 9, 11]), seed=0)
+    assert f.node.tolist() == [5, 9, 11]
+    g = L.attach_leaves(sk, pts, size=0.3, center=[0, 5, 0], seed=0)  # same cards, searched twigs
+    _same(f, g, ("positions", "normals", "up", "size", "color"))
+    for bad in (np.array([5, 9]), np.array([5, 9, sk.n_nodes]), np.array([0.5, 1.0, 2.0])):
+        with pytest.raises(InputError, match="nodes"):
+            L.attach_leaves(sk, pts, size=0.3, center=[0, 5, 0], nodes=bad)

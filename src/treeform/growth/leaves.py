@@ -11,7 +11,7 @@ from treeform.structures.skeleton import TreeSkeleton
 
 
 def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float, center, twig_tips: int = 8,
-                  scatter: float = 0.9, seed=None) -> Foliage:
+                  scatter: float = 0.9, nodes=None, seed=None) -> Foliage:
     """Hang leaf clusters at given positions on their nearest twigs (seed 001 §3.6).
 
     Twig nodes are those carrying at most ``twig_tips`` tips in their subtree (the
@@ -30,6 +30,9 @@ def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float,
     scatter : float
         Weight of the random direction added to the outward one in each normal (0: every
         card faces straight out of the crown).
+    nodes : array_like of int, shape (M,), optional
+        Each cluster's twig when the caller already knows it (clusters grown on a twig):
+        no nearest-twig search.
 
     Returns
     -------
@@ -54,11 +57,17 @@ def attach_leaves(skeleton: TreeSkeleton, positions: np.ndarray, *, size: float,
     if not np.all(np.isfinite(positions)):
         raise InputError("positions: must be finite")
     rng = as_rng(seed)
-    tips = subtree_tips(skeleton)
-    twigs = np.flatnonzero((tips <= twig_tips) & (skeleton.order > 0))
-    if len(twigs) == 0:
-        twigs = np.arange(1, skeleton.n_nodes)
-    anchor = twigs[nearest_points(skeleton.positions[twigs], positions)]  # cKDTree's answer, 2-3x faster
+    if nodes is not None:
+        anchor = np.asarray(nodes).reshape(-1)
+        if anchor.shape != (n,) or anchor.dtype.kind not in "iu" or anchor.min() < 0 or \
+                anchor.max() >= skeleton.n_nodes:
+            raise InputError(f"nodes: expected {n} node indices in [0, {skeleton.n_nodes})")
+    else:
+        tips = subtree_tips(skeleton)
+        twigs = np.flatnonzero((tips <= twig_tips) & (skeleton.order > 0))
+        if len(twigs) == 0:
+            twigs = np.arange(1, skeleton.n_nodes)
+        anchor = twigs[nearest_points(skeleton.positions[twigs], positions)]  # cKDTree's answer, 2-3x faster
     center = np.asarray(center, np.float64).reshape(3)
     g_normal = rng.normal(size=(n, 3))
     # normal = unit(unit(p - center) + scatter · unit(g_normal)), up = unit(normal × unit(g_up)), compiled
@@ -145,7 +154,8 @@ def twig_nodes(skeleton: TreeSkeleton, twig_tips: int = 4) -> np.ndarray:
     return twigs[twigs > 0]
 
 
-def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: int = 4, seed=None) -> np.ndarray:
+def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: int = 4, seed=None,
+                   return_nodes: bool = False):
     """``n`` leaf-cluster centres scattered around the twigs (seed 003 Appendix: leaves on twigs).
 
     Each cluster picks a twig node (evenly: every twig gets ``n // twigs`` or one more), a
@@ -159,24 +169,28 @@ def leaf_positions(skeleton: TreeSkeleton, n: int, *, size: float, twig_tips: in
         Leaf-cluster card size in metres.
     twig_tips : int
     seed : int or numpy.random.Generator
+    return_nodes : bool
+        Also return the twig node of each centre.
 
     Returns
     -------
     ndarray, shape (n, 3)
+        (and, with ``return_nodes``, the twig nodes, shape (n,))
     """
     from treeform.growth._leaf_kernels import internode_points
 
     rng = as_rng(seed)
     twigs = twig_nodes(skeleton, twig_tips)
     if n <= 0 or len(twigs) == 0:
-        return np.zeros((0, 3))
+        return (np.zeros((0, 3)), np.zeros(0, np.int64)) if return_nodes else np.zeros((0, 3))
     reps = np.full(len(twigs), n // len(twigs))
     reps[rng.permutation(len(twigs))[: n % len(twigs)]] += 1
     node = np.repeat(twigs, reps)
     t = rng.uniform(0.0, 1.0, (len(node), 1))
     noise = rng.normal(0.0, size / 3.0, (len(node), 3))
     # a + t·(b - a) + noise on the internode a = parent(node) -> b = node, y >= size / 2, compiled
-    return internode_points(skeleton.positions, skeleton.parent, node, t, noise, size / 2)
+    pts = internode_points(skeleton.positions, skeleton.parent, node, t, noise, size / 2)
+    return (pts, node) if return_nodes else pts
 
 
 def _species_colors(foliage: Foliage, base_rgb, center: np.ndarray, radius: float, rng) -> np.ndarray:
@@ -222,11 +236,12 @@ def twig_foliage(skeleton: TreeSkeleton, *, leaf_color, size: float, leaves: int
     """
     rng = as_rng(seed)
     n = leaves if leaves is not None else int(round(leaves_per_twig * len(twig_nodes(skeleton, twig_tips))))
-    pts = leaf_positions(skeleton, n, size=size, twig_tips=twig_tips, seed=rng)
+    pts, node = leaf_positions(skeleton, n, size=size, twig_tips=twig_tips, seed=rng, return_nodes=True)
     if not len(pts):
         return Foliage.empty()
     lo, hi = pts.min(0), pts.max(0)
     center = 0.5 * (lo + hi)
-    foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=twig_tips, seed=rng)
+    # each cluster hangs on the twig it was scattered around (no nearest-twig search)
+    foliage = attach_leaves(skeleton, pts, size=size, center=center, twig_tips=twig_tips, nodes=node, seed=rng)
     radius = 0.5 * float(np.linalg.norm(hi - lo))
     return foliage.with_colors(_species_colors(foliage, leaf_color, center, radius, rng))
