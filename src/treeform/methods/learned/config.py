@@ -54,7 +54,9 @@ class GrowConfig:
     """Leaf clusters per twig node (a node carrying at most ``twig_tips`` tips), when
     ``leaves`` is None."""
     leaves: int | None = None
-    """Total number of leaf clusters (alpha-textured cards); None: ``leaves_per_twig`` per twig."""
+    """Total number of leaf clusters (alpha-textured cards); None: ``leaves_per_twig`` per twig.
+    Under a triangle budget (``lod`` other than "full") this is the full-detail count: only the
+    clusters the budget keeps are made, enlarged (:func:`treeform.geometry.foliage_budget`)."""
     twig_tips: int = 4
     """A node whose subtree holds at most this many tips is a twig: leaves hang on twigs."""
     leaf_size: float | None = None
