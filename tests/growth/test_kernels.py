@@ -113,3 +113,34 @@ def test_shadow_grid_equals_the_splatted_pyramids():
         assert np.allclose(K.light_direction(shadow, lo, voxel, 0.5, *p), want / np.linalg.norm(want))
         e = K.exposure(shadow, lo, voxel, a, 10.0, *p)
         assert e == pytest.approx(np.clip(1 - (shadow[i, j, k] - a) / 10.0, 0, 1))
+
+
+def test_a_cold_cache_is_announced_once_and_a_warm_one_not(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import logging, json\n"
+        "from treeform._shared import jit\n"
+        "from treeform.growth import _kernels\n"
+        "from treeform.growth.phenomenological import _ENTRY_KERNELS, COMPILE_SECONDS, GrowthParameters, grow\n"
+        "seen = []\n"
+        "class H(logging.Handler):\n"
+        "    def emit(self, r): seen.append(r.getMessage())\n"
+        "log = logging.getLogger('treeform'); log.addHandler(H()); log.setLevel(logging.INFO)\n"
+        "before = jit.cold_kernels(_kernels.__file__, names=_ENTRY_KERNELS)\n"
+        "grow(GrowthParameters(age=2), seed=0); grow(GrowthParameters(age=2), seed=1)\n"
+        "after = jit.cold_kernels(_kernels.__file__, names=_ENTRY_KERNELS)\n"
+        "print(json.dumps([before, after, seen]))\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    import json
+
+    before, after, seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert before[0] == before[1] == 7 and after == [0, 7]  # every entry kernel compiled and cached
+    notes = [m for m in seen if "compiling the growth kernels" in m]
+    assert len(notes) == 1  # once per process
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    before, after, seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert before == [0, 7] and not [m for m in seen if "compiling" in m]  # warm: silent

@@ -20,11 +20,12 @@ _LOCATE = """
 import json
 from numba.core.registry import cpu_target
 from treeform.segment import matting as m
+from treeform._shared.jit import numba_kernels
 from importlib.util import find_spec
 import os
 from numba.core.caching import CompileResultCacheImpl
 out = []
-for path, name, line in m._numba_kernels(os.path.dirname(find_spec("pymatting").origin)):
+for path, name, line in numba_kernels(os.path.dirname(find_spec("pymatting").origin)):
     ns = {}
     exec(compile("\\n" * (line - 1) + "def _f():\\n    pass\\n", path, "exec"), ns)
     f = ns["_f"]; f.__qualname__ = name; f.__name__ = name.rsplit(".", 1)[-1]

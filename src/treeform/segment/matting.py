@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform._shared.jit import cold_kernels
 from treeform._shared.rng import as_rng
 from treeform.structures.segmentation import Segmentation
 
@@ -37,60 +38,6 @@ log = logging.getLogger(__name__)
 
 COMPILE_SECONDS = 50
 """Rough time numba takes to compile all of PyMatting's kernels (measured: 47 s on 2 cores)."""
-
-
-def _numba_kernels(root: str):
-    """``(source file, qualname, first line)`` of every ``cache=True`` numba function under ``root``.
-
-    Found by parsing the sources (importing them would compile them). ``first line`` is the
-    function's first decorator line, which numba uses (``co_firstlineno``) in its cache names.
-    """
-    import ast
-
-    def walk(node, path, prefix):
-        for ch in ast.iter_child_nodes(node):
-            if isinstance(ch, ast.FunctionDef):
-                name = prefix + ch.name
-                if any(isinstance(d, ast.Call) and any(k.arg == "cache" and isinstance(k.value, ast.Constant)
-                                                       and k.value.value is True for k in d.keywords)
-                       for d in ch.decorator_list):
-                    yield path, name, ch.decorator_list[0].lineno
-                yield from walk(ch, path, name + ".<locals>.")
-            elif isinstance(ch, ast.ClassDef):
-                yield from walk(ch, path, prefix + ch.name + ".")
-
-    for folder, dirs, files in os.walk(root):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        for f in sorted(files):
-            if f.endswith(".py"):
-                path = os.path.join(folder, f)
-                with open(path, encoding="utf-8") as fh:
-                    src = fh.read()
-                if "cache=True" in src:
-                    yield from walk(ast.parse(src, path), path, "")
-
-
-def _cached(path: str, qualname: str, line: int, magic) -> bool:
-    """Does numba's cache hold a fresh compiled entry of this function for this machine?
-
-    Uses numba's own locators (``NUMBA_CACHE_DIR``, the package's ``__pycache__``, the user
-    cache), cache file names and index format, on a stand-in function with the same file,
-    line and qualified name.
-    """
-    from numba.core.caching import CompileResultCacheImpl, IndexDataCacheFile
-
-    ns: dict = {}
-    exec(compile("\n" * (line - 1) + "def _f():\n    pass\n", path, "exec"), ns)
-    func = ns["_f"]
-    func.__qualname__, func.__name__ = qualname, qualname.rsplit(".", 1)[-1]
-    try:
-        impl = CompileResultCacheImpl(func)
-    except RuntimeError:  # no writable cache location: numba cannot cache it (it compiles every run)
-        return False
-    loc = impl.locator
-    index = IndexDataCacheFile(loc.get_cache_path(), impl.filename_base, loc.get_source_stamp())
-    return any(key[1] == magic and os.path.exists(os.path.join(loc.get_cache_path(), name))
-               for key, name in index._load_index().items())
 
 
 def _marker_path():
@@ -115,17 +62,7 @@ def kernels_to_compile() -> tuple[int, int]:
     try:
         from importlib.util import find_spec
 
-        from numba.core import config
-        from numba.core.registry import cpu_target
-
-        if config.DISABLE_JIT:
-            return 0, 0
-        kernels = list(_numba_kernels(os.path.dirname(find_spec("pymatting").origin)))
-        if not kernels:
-            raise LookupError("no cache=True kernels found in the PyMatting sources")
-        magic = cpu_target.target_context.codegen().magic_tuple()
-        cold = sum(not _cached(path, name, line, magic) for path, name, line in kernels)
-        return cold, len(kernels)
+        return cold_kernels(os.path.dirname(find_spec("pymatting").origin))
     except Exception:  # numba or PyMatting internals changed: fall back to our own marker
         try:
             return (0, 1) if _marker_path().exists() else (1, 1)
