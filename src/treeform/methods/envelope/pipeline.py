@@ -86,6 +86,26 @@ def _face_camera(foliage: Foliage, cam: Camera, which: np.ndarray, rng, scatter:
     return Foliage(foliage.positions, normals, foliage.up, foliage.size, foliage.color, foliage.node)
 
 
+_KERNELS = {  # the compiled kernels this route calls from Python (their callees compile into them)
+    "growth/_kernels.py": {"pipe_accumulate", "main_child_orders"},
+    "growth/_leaf_kernels.py": {"nearest_points", "orient_cards", "subtree_tip_counts"},
+    "geometry/_kernels.py": {"chain_layout", "card_corners", "prefix_rotations"},
+    "crown/_kernels.py": {"finish_tiles"},
+}
+
+
+def _announce_compile():
+    """Say so when this run will compile the route's numba kernels (once per installation, ~6 s)."""
+    import logging
+
+    import treeform
+    from treeform._shared.jit import announce_compile
+
+    root = Path(treeform.__file__).parent
+    announce_compile(logging.getLogger(__name__), "the meshing and foliage kernels", 6,
+                     *(str(root / f) for f in _KERNELS), names=set().union(*_KERNELS.values()))
+
+
 def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = None,
                 progress: ProgressCallback | None = None, **options) -> Reconstruction:
     """Reconstruct a leafy, textured 3D tree from one photo (seed 001 §3).
@@ -113,6 +133,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
     out_dir = check_out_dir(out) if out is not None else None
     timer = StageTimer(progress)
     rng = as_rng(cfg.seed)
+    _announce_compile()
 
     with timer.stage("load"):
         ph, user_mask = load_photo(photo, mask, max_size=cfg.max_size)
