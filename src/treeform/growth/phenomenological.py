@@ -53,7 +53,6 @@ from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform._shared.jit import announce_compile
-from treeform.growth import _kernels as _k
 from treeform.structures.skeleton import TreeSkeleton
 
 __all__ = ["GrowthParameters", "PARAMETER_SYMBOLS", "apical_control", "grow"]
@@ -373,6 +372,8 @@ def grow(params: GrowthParameters, *, seed=0, envelope=None, initial: TreeSkelet
     >>> bool(sk.positions[:, 1].max() > 1), sk.n_nodes == grow(GrowthParameters(age=3), seed=1).n_nodes
     (True, True)
     """
+    from treeform.growth import _kernels as _k  # numba: imported when a tree grows, not with the parameters
+
     if not isinstance(params, GrowthParameters):
         raise InputError(f"params: expected a GrowthParameters, got {type(params).__name__}")
     p = replace(params).validate()
@@ -430,6 +431,8 @@ def _scaffold_buds(p: GrowthParameters, sk: TreeSkeleton, rng: np.random.Generat
 
 def _param_vector(p: GrowthParameters) -> np.ndarray:
     """The float parameters in the kernels' order (:mod:`treeform.growth._kernels` ``P_*``)."""
+    from treeform.growth import _kernels as _k
+
     v = np.empty(_k.P_SIZE)
     for idx, name in ((_k.P_AAV, "apical_angle_variance"), (_k.P_BAM, "branching_angle_mean"),
                       (_k.P_BAV, "branching_angle_variance"), (_k.P_RAM, "roll_angle_mean"),
@@ -500,6 +503,8 @@ class _Tree:
 
 def _simulate(p: GrowthParameters, rng: np.random.Generator, inside, initial: TreeSkeleton | None = None):
     """Run ``p.age`` growth cycles (see the module docstring); returns the tree of every node ever grown."""
+    from treeform.growth import _kernels as _k
+
     tree = _Tree()
     state = _k.seed_state(rng)
     if initial is None:
@@ -557,6 +562,7 @@ def _structure(p: GrowthParameters, tree: _Tree, inside, n_fixed: int = 0) -> Tr
     """Compact the living nodes, give them pipe-model radii and bend them under gravity.
 
     The first ``n_fixed`` nodes (a scaffold) keep their positions."""
+    from treeform.growth import _kernels as _k
     from treeform.growth.radii import branch_orders, pipe_model_radii
 
     n = tree.n
