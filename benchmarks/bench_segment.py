@@ -63,6 +63,26 @@ def score(name: str, fn, cases):
             "median_seconds": round(statistics.median(times), 4)}
 
 
+def resolution_ceiling(labels, strides=(2, 4, 8)) -> dict:
+    """IoU of the true labels reduced to each stride (area average of one-hot) and upsampled back
+    bilinearly: the best a network whose logits stop at that stride can score."""
+    import cv2
+
+    from treeform.metrics.segmentation import CLASSES, class_iou, confusion_matrix
+
+    out = {}
+    for k in strides:
+        conf = np.zeros((3, 3), np.int64)
+        for lab in labels:
+            h, w = lab.shape
+            onehot = np.eye(3, dtype=np.float32)[lab]
+            coarse = cv2.resize(onehot, (w // k, h // k), interpolation=cv2.INTER_AREA)
+            conf += confusion_matrix(cv2.resize(coarse, (w, h), interpolation=cv2.INTER_LINEAR).argmax(-1), lab)
+        ious = class_iou(conf)
+        out[k] = {"iou": dict(zip(CLASSES, np.round(ious, 4).tolist())), "mean_iou": round(float(np.nanmean(ious)), 4)}
+    return out
+
+
 def main():
     from treeform.segment import segment_tree, segment_tree_learned
 
@@ -107,6 +127,11 @@ def main():
         print(f"\nsynthetic test split ({m['n']} scenes of held-out trees): mean IoU {100 * m['mean_iou']:.1f} % — "
               + ", ".join(f"{k} {100 * v:.1f} %" for k, v in m["iou"].items()))
         result["synthetic"] = m
+        ceiling = resolution_ceiling(sc["renders"][1])
+        print("resolution ceiling (the true labels reduced to stride k and upsampled back): "
+              + ", ".join(f"stride {k}: mean IoU {100 * v['mean_iou']:.1f} % (wood {100 * v['iou']['wood']:.1f} %)"
+                          for k, v in ceiling.items()))
+        result["resolution_ceiling"] = ceiling
     (ROOT / "out").mkdir(exist_ok=True)
     (ROOT / "out" / "bench_segment.json").write_text(json.dumps(result, indent=2))
 

@@ -135,3 +135,21 @@ def test_scene_stream_composes_over_real_photos():
     assert np.median(r - g) > 60  # the photo shows through (clutter covers only part of it)
     imgs2, _ = SceneStream([_sprite(0)], photos=[red], photo_fraction=1.0, negatives=1.0, size=64, pool=8).chunk(0, 4)
     assert np.array_equal(imgs, imgs2)
+
+
+def test_sprite_labels_shrink_with_the_image_not_by_sampling_phase():
+    """A 1-px twig halved in size: nearest-neighbour resizing keeps it at even columns and
+    drops it at odd ones; coverage resampling labels it the same at both (as the image shows it)."""
+    import cv2
+
+    from treeform.dataset.scenes import _resample_labels
+
+    for x in (10, 11):
+        lab = np.zeros((40, 40), np.uint8)
+        lab[:, x] = 2
+        lab[30:, 20:26] = 1  # a foliage block elsewhere keeps its area
+        out = _resample_labels(lab, (20, 20), cv2.INTER_AREA)
+        assert out.shape == (20, 20)
+        assert np.array_equal(np.flatnonzero((out == 2).all(0)), [5])
+        assert (out == 1).sum() == 5 * 3
+    assert not _resample_labels(np.zeros((8, 8), np.uint8), (4, 4), cv2.INTER_AREA).any()

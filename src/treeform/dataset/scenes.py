@@ -275,6 +275,26 @@ def _tree_look(sprite: Sprite, rng) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------------------ pasting
+def _resample_labels(labels: np.ndarray, size: tuple, interp: int) -> np.ndarray:
+    """``labels`` resized to ``size`` (w, h) as the image is: each class's coverage is resampled
+    with the image's interpolation and every pixel takes the labelled class that covers most
+    of it (0 where none does).
+
+    Nearest-neighbour resizing would keep or drop a 1-px twig by the sampling phase while the
+    image shows it as a half-covered pixel, labels the network cannot learn nor be scored on.
+    """
+    classes = np.unique(labels)
+    classes = classes[classes > 0]
+    if len(classes) == 0:
+        return np.zeros(size[::-1], labels.dtype)
+    cover = np.stack([(labels == c).astype(np.float32) for c in classes], -1)
+    cover = cv2.resize(cover, size, interpolation=interp).reshape(size[1], size[0], len(classes))
+    best = cover.argmax(-1)
+    out = classes[best].astype(labels.dtype)
+    out[np.take_along_axis(cover, best[..., None], -1)[..., 0] <= 0.0] = 0
+    return out
+
+
 def _paste(canvas: np.ndarray, lab: np.ndarray | None, rgba: np.ndarray, labels: np.ndarray | None,
            height_px: float, cx: float, base_y: float, *, label_value=None, haze=0.0, haze_col=None,
            blur=0.0) -> None:
@@ -307,7 +327,7 @@ def _paste(canvas: np.ndarray, lab: np.ndarray | None, rgba: np.ndarray, labels:
     canvas[ys:ye, xs:xe] = canvas[ys:ye, xs:xe] * (1 - aa) + col[sl] * aa
     if lab is not None:
         if labels is not None:
-            lr = cv2.resize(labels, (nw, nh), interpolation=cv2.INTER_NEAREST)[sl]
+            lr = _resample_labels(labels, (nw, nh), interp)[sl]
             opaque = (aa[..., 0] >= 0.5) & (lr > 0)
             lab[ys:ye, xs:xe][opaque] = lr[opaque]
             # a pixel the sprite covers but does not label (coverage < 1/2 at the source) is left as it was
