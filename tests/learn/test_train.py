@@ -67,3 +67,39 @@ def test_rbv_training_writes_an_onnx_that_matches_torch(tmp_path, tiny_data):
     y = sess.run(None, {"mask": x})[0]
     with torch.no_grad():
         assert np.allclose(y, net(torch.from_numpy(x)).numpy(), atol=1e-4)
+
+
+@pytest.mark.parametrize("fine_stride", [1, 2, 4])
+def test_segnet_gives_logits_at_the_input_size_and_exports_exactly(tmp_path, fine_stride):
+    import onnxruntime as ort
+
+    from treeform.learn.export import export_onnx
+    from treeform.learn.nets.segnet import SegNet
+
+    torch.manual_seed(0)
+    net = SegNet(8, fine_stride=fine_stride).eval()
+    x = np.random.default_rng(1).random((1, 3, 48, 72)).astype(np.float32)  # not square, free size
+    with torch.no_grad():
+        y = net(torch.from_numpy(x)).numpy()
+    assert y.shape == (1, 3, 48, 72) and np.isfinite(y).all()
+    sess = ort.InferenceSession(str(export_onnx(net, tmp_path / "seg.onnx", kind="seg")),
+                                providers=["CPUExecutionProvider"])
+    assert np.allclose(sess.run(None, {"image": x})[0], y, atol=1e-4)
+    if fine_stride == 1:
+        # the sub-pixel head gives each pixel of a stride-2 cell its own logits: a 1-px
+        # pattern (here a wood line on every other column) is drawable, which a bilinear
+        # upsampling of coarser logits cannot do
+        with torch.no_grad():
+            net.head.weight.zero_()
+            bias = torch.zeros(3, 2, 2)
+            bias[2, :, 1] = 1.0  # class 'wood' on the right column of each cell
+            net.head.bias.copy_(bias.flatten())
+            lab = net(torch.from_numpy(x)).argmax(1)[0].numpy()
+        assert (lab[:, 1::2] == 2).all() and (lab[:, 0::2] == 0).all()
+
+
+def test_segnet_rejects_an_unknown_stride():
+    from treeform.learn.nets.segnet import SegNet
+
+    with pytest.raises(ValueError, match="fine_stride"):
+        SegNet(8, fine_stride=3)

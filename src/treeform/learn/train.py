@@ -52,6 +52,8 @@ class SegTrainConfig:
     """Edge of the square training scenes."""
     width: int = 16
     """SegNet channel base."""
+    fine_stride: int = 1
+    """Resolution of SegNet's logits (1 = the scene's own pixels; 4 = plain DeepLab-V3+)."""
     lr: float = 3e-3
     """Peak AdamW learning rate (warm-up, then cosine decay to 2 %)."""
     weight_decay: float = 1e-4
@@ -166,7 +168,7 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     stream = SceneStream(renders, cuts, size=cfg.size, seed=cfg.seed, cutout_fraction=cfg.cutout_fraction,
                          negatives=cfg.negatives, photos=bg_photos, photo_fraction=cfg.photo_fraction)
     torch.manual_seed(cfg.seed)
-    model = SegNet(cfg.width)
+    model = SegNet(cfg.width, fine_stride=cfg.fine_stride)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     ckpt_path = out / "checkpoint.pt"
     step, prior_seconds = 0, 0.0
