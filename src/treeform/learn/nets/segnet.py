@@ -13,11 +13,10 @@ from scratch; the DeepLab parts are kept:
 - a light **decoder** (the V3+ refinement) that fuses the stride-4 features, then (beyond
   V3+, as a U-Net does) the stride-2 stem features, and a sub-pixel head (pixel shuffle:
   each stride-2 cell predicts its 2x2 pixels) so the logits come out at the input's own
-  resolution. Bilinear upsampling of
-  stride-4 logits cannot draw a twig: even the *true* labels, reduced to stride 4 and
-  upsampled back, score only 33 % wood IoU (73 % mean) on our test scenes; at stride 2,
-  59 % (84 %) (``benchmarks/bench_segment.py --test-data``). ``fine_stride`` picks where the
-  decoder stops (4 = plain V3+).
+  resolution. Bilinear upsampling of stride-4 logits cannot draw a twig: even the *true*
+  labels, reduced to stride 4 and upsampled back, score only 33 % wood IoU (73 % mean) on
+  our test scenes; at stride 2, 59 % (84 %) (``benchmarks/bench_segment.py --test-data``).
+  ``fine_stride`` picks where the decoder stops (4 = plain V3+, the shipped weights).
 
 Input: (N, 3, H, W) float RGB in [0, 1] with H, W multiples of 8. Output: (N, 3, H, W)
 logits for background, foliage, wood.
@@ -63,8 +62,8 @@ class SegNet(nn.Module):
     classes : int
     fine_stride : {1, 2, 4}
         Resolution of the logits before the final upsampling (1 = the input's, by a
-        sub-pixel head on the stride-2 decoder; a full-resolution convolution branch trained
-        1.4x slower on the 2-core CPU).
+        sub-pixel head on the stride-2 decoder: 1.2x the stride-4 net's training step on the
+        2-core CPU, where a full-resolution convolution branch took 1.6x).
     """
 
     def __init__(self, width: int = 16, classes: int = 3, fine_stride: int = 1):
