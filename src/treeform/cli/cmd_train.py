@@ -24,13 +24,16 @@ def seg_cmd(
     steps: int = typer.Option(2800, "--steps", help="Optimiser steps."),
     batch: int = typer.Option(16, "--batch", help="Scenes per step."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
+    device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto (cuda when torch sees one)."),
+    workers: int = typer.Option(0, "--workers", help="Processes composing scenes ahead of the optimiser "
+                                "(0 = in line; same scenes either way)."),
 ):
     """Segmentation network (background / foliage / wood); resumes from OUT/checkpoint.pt."""
     from treeform.cli.progress import TrainProgress
     from treeform.learn.train import train_seg
 
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
-                seed=seed, display=TrainProgress("seg"),
+                seed=seed, device=device, workers=workers, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos)))
     r, c = m.get("renders"), m.get("cutouts")
     if r:

@@ -5,7 +5,8 @@ on randomised scenes (:class:`~treeform.learn.data.SceneStream`) built from a da
 ``treeform dataset generate`` plus, when given, real photo cut-outs. Every run:
 
 - is seeded: same data + seed + config -> the same scene stream and initialisation
-  (bit-identical weights on the same machine and thread count);
+  (bit-identical weights on the same machine and thread count, on the CPU; ``workers``
+  processes compose the same scenes as the main process would);
 - writes ``checkpoint.pt`` atomically every ``checkpoint_every`` steps and resumes from it
   after a kill (the scene stream is a function of the round, so a resumed run sees the
   same data as an uninterrupted one);
@@ -18,6 +19,7 @@ This module is never imported by inference (``treeform reconstruct`` / ``segment
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -71,6 +73,10 @@ class SegTrainConfig:
     checkpoint_every: int = 100
     threads: int = 0
     """torch CPU threads (0 = all cores)."""
+    device: str = "cpu"
+    """Where the network trains: 'cpu', 'cuda' or 'auto' (cuda when torch sees one)."""
+    workers: int = 0
+    """Processes composing rounds ahead of the optimiser (0 = in line; the scenes are the same either way)."""
 
     @classmethod
     def from_dict(cls, d: dict) -> "SegTrainConfig":
@@ -99,6 +105,90 @@ def _partial_ce(logits, labels, wood_weight: float):
     else:
         dice = logits.sum() * 0
     return ce + 0.5 * wood_weight / 2.5 * dice
+
+
+_RUNTIME_ONLY = ("threads", "device", "workers")
+"""Settings that change where and how fast a run goes, not what it learns (a resume may change them)."""
+
+
+def _same_run(a: dict, b: dict) -> bool:
+    return ({k: v for k, v in a.items() if k not in _RUNTIME_ONLY}
+            == {k: v for k, v in b.items() if k not in _RUNTIME_ONLY})
+
+
+_STREAM = None  # a worker process's own SceneStream (built once by _start_worker)
+
+
+def _start_worker(make_stream) -> None:
+    global _STREAM
+    import cv2
+
+    cv2.setNumThreads(1)
+    _STREAM = make_stream()
+
+
+def _compose_round(r: int, n: int):
+    return _STREAM.chunk(r, n)
+
+
+def _scene_stream(data, cutouts, photos, *, size, seed, cutout_fraction, negatives, photo_fraction):
+    """The training :class:`~treeform.learn.data.SceneStream` of ``train_seg`` (also built in each worker)."""
+    from treeform.dataset.scenes import load_photos
+    from treeform.learn.data import SceneStream
+
+    renders, cuts = _sprites(data, cutouts, "train")
+    bg_photos = load_photos(photos, split="train") if photos is not None else []
+    return SceneStream(renders, cuts, size=size, seed=seed, cutout_fraction=cutout_fraction, negatives=negatives,
+                       photos=bg_photos, photo_fraction=photo_fraction)
+
+
+class _Rounds:
+    """Rounds of a :class:`~treeform.learn.data.SceneStream`, in line or composed ahead by worker processes.
+
+    ``make_stream`` is a picklable callable that builds the stream; each of the ``workers``
+    processes (spawned, not forked: a fork of a process whose OpenCV or OpenMP threads
+    have started can deadlock) builds its own. Round ``r`` depends only on (seed, r), so
+    the scenes are identical whichever process composes them; ``2 * workers`` rounds are
+    kept in flight.
+    """
+
+    def __init__(self, make_stream, n: int, workers: int):
+        self.n, self.workers = int(n), int(workers)
+        self._pool, self._pending, self.stream = None, {}, None
+        if self.workers > 0:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                             initializer=_start_worker, initargs=(make_stream,))
+        else:
+            self.stream = make_stream()
+
+    def get(self, r: int):
+        if self._pool is None:
+            return self.stream.chunk(r, self.n)
+        for k in list(self._pending):
+            if k < r:
+                self._pending.pop(k).cancel()
+        for k in range(r, r + 2 * self.workers):
+            if k not in self._pending:
+                self._pending[k] = self._pool.submit(_compose_round, k, self.n)
+        return self._pending.pop(r).result()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+def _device(torch, name: str):
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name not in ("cpu", "cuda"):
+        raise InputError(f"device {name!r}: expected cpu, cuda or auto")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise InputError("device cuda: torch sees no CUDA device (use --device cpu)")
+    return torch.device(name)
 
 
 def _save_atomic(obj, path: Path) -> None:
@@ -153,7 +243,6 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         The test metrics (also in ``out/metrics.json``).
     """
     torch = _torch()
-    from treeform.learn.data import SceneStream
     from treeform.learn.nets.segnet import SegNet
 
     cfg = SegTrainConfig.from_dict({**(asdict(config) if config else {}), **options})
@@ -161,20 +250,20 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     out.mkdir(parents=True, exist_ok=True)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
-    renders, cuts = _sprites(data, cutouts, "train")
-    from treeform.dataset.scenes import load_photos
-
-    bg_photos = load_photos(photos, split="train") if photos is not None else []
-    stream = SceneStream(renders, cuts, size=cfg.size, seed=cfg.seed, cutout_fraction=cfg.cutout_fraction,
-                         negatives=cfg.negatives, photos=bg_photos, photo_fraction=cfg.photo_fraction)
+    make_stream = functools.partial(_scene_stream, data, cutouts, photos, size=cfg.size, seed=cfg.seed,
+                                    cutout_fraction=cfg.cutout_fraction, negatives=cfg.negatives,
+                                    photo_fraction=cfg.photo_fraction)
+    dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
-    model = SegNet(cfg.width, fine_stride=cfg.fine_stride)
+    model = SegNet(cfg.width, fine_stride=cfg.fine_stride).to(dev)
+    if dev.type == "cuda":
+        torch.backends.cudnn.benchmark = True
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     ckpt_path = out / "checkpoint.pt"
     step, prior_seconds = 0, 0.0
     if ckpt_path.exists():
         state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        if state.get("config") != asdict(cfg):
+        if not _same_run(state.get("config") or {}, asdict(cfg)):
             raise InputError(f"{ckpt_path}: written with other settings; use another --out or delete it")
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
@@ -186,14 +275,41 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
                                                  "cutouts": str(cutouts), "photos": str(photos), **asdict(cfg)},
                                                 indent=2))
     per_round = max(1, cfg.chunk * cfg.repeats // cfg.batch)
+    rounds = _Rounds(make_stream, cfg.chunk, cfg.workers)
+    try:
+        _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_seconds, progress)
+    finally:
+        rounds.close()
+    model = model.cpu().eval()
+    from treeform.learn.export import export_onnx
+
+    onnx_path = export_onnx(model, out / "model.onnx", kind="seg", metadata={"train_steps": cfg.steps,
+                                                                             "train_size": cfg.size})
+    state = torch.load(ckpt_path, map_location="cpu", weights_only=False) if ckpt_path.exists() else {}
+    metrics = {"train_seconds": round(float(state.get("seconds", 0.0)), 1), "steps": cfg.steps,
+               "device": dev.type}
+    test_r, test_c = _sprites(test_data, cutouts, "test") if (test_data or cutouts) else ([], [])
+    if test_r or test_c:
+        from treeform.learn.data import test_scenes
+        from treeform.learn.infer import Segmenter
+
+        seg = Segmenter(onnx_path)
+        metrics.update(evaluate_segmenter(lambda im: seg.predict_labels(im, keep_main=False), test_scenes(test_r, test_c, size=cfg.size)))
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    return metrics
+
+
+def _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_seconds, progress) -> None:
+    """The optimiser loop of :func:`train_seg` from ``step``; checkpoints every ``cfg.checkpoint_every``."""
+    ckpt_path = out / "checkpoint.pt"
     model.train()
     t0, seen, loss_avg = time.perf_counter(), 0, None
-    images = labels = None
+    images = labels = order = None
     cur_round = -1
     while step < cfg.steps:
         r = step // per_round
         if r != cur_round:
-            images, labels = stream.chunk(r, cfg.chunk)
+            images, labels = rounds.get(r)
             order = np.random.default_rng([cfg.seed, 9, r]).permutation(np.tile(np.arange(cfg.chunk), cfg.repeats))
             cur_round = r
         k = step % per_round
@@ -202,8 +318,8 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         x = images[idx].copy()
         y = labels[idx].copy()
         x[flip], y[flip] = x[flip][:, :, ::-1], y[flip][:, :, ::-1]
-        xt = torch.from_numpy(np.ascontiguousarray(x)).permute(0, 3, 1, 2).float().div_(255.0)
-        yt = torch.from_numpy(np.ascontiguousarray(y))
+        xt = torch.from_numpy(np.ascontiguousarray(x)).to(dev).permute(0, 3, 1, 2).float().div_(255.0)
+        yt = torch.from_numpy(np.ascontiguousarray(y)).to(dev)
         for g in opt.param_groups:
             g["lr"] = _lr_at(step, cfg.steps, cfg.lr)
         loss = _partial_ce(model(xt), yt, cfg.wood_weight)
@@ -224,21 +340,6 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
             _save_atomic({"model": model.state_dict(), "optimizer": opt.state_dict(), "step": step,
                           "config": asdict(cfg), "seconds": prior_seconds + dt,
                           "torch_rng": torch.get_rng_state()}, ckpt_path)
-    model.eval()
-    from treeform.learn.export import export_onnx
-
-    onnx_path = export_onnx(model, out / "model.onnx", kind="seg", metadata={"train_steps": cfg.steps,
-                                                                             "train_size": cfg.size})
-    metrics = {"train_seconds": round(prior_seconds + time.perf_counter() - t0, 1), "steps": cfg.steps}
-    test_r, test_c = _sprites(test_data, cutouts, "test") if (test_data or cutouts) else ([], [])
-    if test_r or test_c:
-        from treeform.learn.data import test_scenes
-        from treeform.learn.infer import Segmenter
-
-        seg = Segmenter(onnx_path)
-        metrics.update(evaluate_segmenter(lambda im: seg.predict_labels(im, keep_main=False), test_scenes(test_r, test_c, size=cfg.size)))
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
-    return metrics
 
 
 def evaluate_segmenter(predict, scenes: dict) -> dict:
