@@ -133,3 +133,16 @@ def test_mask_markers_frame():
     pts, frame = mask_markers(m, height=7.0)
     assert len(pts) == m.sum() and np.isclose(pts[:, 1].max(), 7.0) and np.isclose(pts[:, 1].min(), 0.0)
     np.testing.assert_allclose(frame.to_pixels(frame.to_world([4.0], [10.0])), [[4.0, 10.0]])
+
+
+def test_a_branch_mask_out_of_reach_of_the_base_is_ignored_not_a_bare_stump():
+    # wood pixels only high in the crown, the trunk hidden: the mask's scaffold cannot leave
+    # the base, so the tree grows from the volume alone (was: a one-node tree, empty mesh)
+    p, gt, rbv, cam, mask, base = _own_mask("maple")
+    far = np.zeros_like(mask)
+    far[: mask.shape[0] // 4, mask.shape[1] // 3: mask.shape[1] // 3 + 3] = True
+    target = rbv.at_level(4)
+    rec = bimodal_grow(p, target, mask=far, seed=2, mask_scale=cam.position[2] / cam.focal, mask_base=base)
+    free = bimodal_grow(p, target, seed=2)
+    assert "branch mask ignored" in rec.meta["mask_note"]
+    assert rec.n_nodes > 100 and rec.n_nodes == free.n_nodes

@@ -368,29 +368,38 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
     timer = StageTimer(progress)
     height = rbv.physical_height
     seg = segment_length or height / 60
+    mask_note = None
+
+    def volume_scaffold():
+        r = float(rbv.physical_radii.max())
+        lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
+        hi = np.asarray(rbv.origin) + [r, height, r]
+        pts = blue_noise_points(rbv.contains, (lo, hi), markers, seed=rng) - [rbv.origin[0], 0, rbv.origin[2]]
+        local = _Shifted(rbv, rbv.origin * [1, 0, 1], axis_tolerance=2 * seg)
+        # a bole up to the first layer wide enough to branch in
+        radii = rbv.physical_radii.max(axis=1)
+        wide = np.flatnonzero(radii > min(4 * seg, 0.5 * radii.max()))
+        bole = (wide[0] / len(radii)) * height
+        return pts, planar_scaffold(pts, segment_length=seg, perception_angle=120.0, envelope=local,
+                                    root=np.zeros(3), trunk_height=bole)
+
     with timer.stage("markers"):
         if mask is not None:
             pts, frame = mask_markers(mask, height=height, scale=mask_scale, base=mask_base)
             seg = segment_length or frame.scale
             if len(pts) > max_markers:
                 pts = pts[np.sort(rng.choice(len(pts), max_markers, replace=False))]
-        else:
-            r = float(rbv.physical_radii.max())
-            lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
-            hi = np.asarray(rbv.origin) + [r, height, r]
-            pts = blue_noise_points(rbv.contains, (lo, hi), markers, seed=rng) - [rbv.origin[0], 0, rbv.origin[2]]
     with timer.stage("scaffold"):
         if mask is not None:
             scaffold = planar_scaffold(pts, segment_length=seg, kill_distance=1.5 * seg, perception_angle=90.0,
                                        root=np.zeros(3), envelope=_AboveGround())
-        else:
-            local = _Shifted(rbv, rbv.origin * [1, 0, 1], axis_tolerance=2 * seg)
-            # a bole up to the first layer wide enough to branch in
-            radii = rbv.physical_radii.max(axis=1)
-            wide = np.flatnonzero(radii > min(4 * seg, 0.5 * radii.max()))
-            bole = (wide[0] / len(radii)) * height
-            scaffold = planar_scaffold(pts, segment_length=seg, perception_angle=120.0, envelope=local,
-                                       root=np.zeros(3), trunk_height=bole)
+            if scaffold.n_nodes < 3:
+                # the branches the mask shows are out of the root's reach (e.g. the trunk is
+                # hidden or cut off by the frame): grow from the volume alone, as without a mask
+                mask_note = f"branch mask ignored: its scaffold reached {scaffold.n_nodes} node(s) from the base"
+                mask, seg = None, segment_length or height / 60
+        if mask is None:
+            pts, scaffold = volume_scaffold()
         if mask is not None:
             # branch widths from the mask, read while the scaffold still lies on the plane:
             # every branch pixel belongs to its nearest scaffold node, whose tube must reach
@@ -441,4 +450,6 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         radius[:k][on] = r_mask[on]
     meta = dict(sk.meta)
     meta.update({"method": "bimodal", "n_scaffold": int(k)})
+    if mask_note is not None:
+        meta["mask_note"] = mask_note
     return TreeSkeleton(sk.positions, sk.parent, radius, branch_orders(sk.parent, radius), sk.age, meta)
