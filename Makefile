@@ -43,6 +43,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_cloud.py
 	$(PY) benchmarks/bench_segment.py
 	$(PY) benchmarks/bench_peers.py
+	$(PY) benchmarks/bench_eval.py
 
 # the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill)
 DATA := out/data

@@ -30,3 +30,20 @@ def machine() -> str:
     except OSError:
         pass
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
+
+
+def write_section(path, name: str, text: str) -> None:
+    """Put ``text`` into the markdown file ``path`` between ``<!-- name:begin -->`` and ``<!-- name:end -->``.
+
+    The section is replaced where it exists, appended the first time.
+    """
+    path = Path(path)
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    body = f"{begin}\n{text.rstrip()}\n{end}"
+    md = path.read_text() if path.exists() else "# Benchmarks\n"
+    i, j = md.find(begin), md.find(end)
+    if i >= 0 and j > i:
+        md = md[:i] + body + md[j + len(end):]
+    else:
+        md = md.rstrip("\n") + "\n\n" + body + "\n"
+    path.write_text(md)

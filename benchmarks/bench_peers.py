@@ -37,12 +37,11 @@ import threading
 import time
 from pathlib import Path
 
-from _common import machine  # benchmarks/ is on sys.path when a script runs
+from _common import machine, write_section  # benchmarks/ is on sys.path when a script runs
 
 ROOT = Path(__file__).resolve().parents[1]
 PEERS = ROOT / "benchmarks" / "peers"
 BENCHMARKS_MD = ROOT / "BENCHMARKS.md"
-BEGIN, END = "<!-- peers:begin -->", "<!-- peers:end -->"
 
 DEFAULT_PRESETS = ("Oak Large", "Pine Large", "Ash Large", "Aspen Large")
 # ez-tree preset family -> nearest treeform species preset (treeform has no ash or aspen)
@@ -252,17 +251,6 @@ def load_line() -> str:
         return "load average unknown"
 
 
-def write_section(text: str) -> None:
-    body = f"{BEGIN}\n{text.rstrip()}\n{END}"
-    md = BENCHMARKS_MD.read_text() if BENCHMARKS_MD.exists() else "# Benchmarks\n"
-    i, j = md.find(BEGIN), md.find(END)
-    if i >= 0 and j > i:
-        md = md[:i] + body + md[j + len(END):]
-    else:
-        md = md.rstrip("\n") + "\n\n" + body + "\n"
-    BENCHMARKS_MD.write_text(md)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=15,
@@ -341,7 +329,7 @@ def main(argv=None) -> int:
             "rendering, no export. The two trees are not the same tree; the budget makes the triangle counts\n"
             "comparable. Skipped with one line when node is missing.\n\n"
             f"{head}\n\n{tab}\n")
-        write_section(section)
+        write_section(BENCHMARKS_MD, "peers", section)
         print(f"\nwrote the peers section of {BENCHMARKS_MD.relative_to(ROOT)}")
     return 0
 

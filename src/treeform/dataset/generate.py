@@ -42,15 +42,12 @@ from treeform.dataset.storage import (
     write_partial,
     write_shard,
 )
+from treeform._shared.cluster import dask_client
 from treeform.dataset.synthetic import SampleOptions, make_sample
 
 __all__ = ["GenerateResult", "generate_dataset", "parse_species", "sample_members"]
 
 log = logging.getLogger(__name__)
-
-WORKER_ENV = {"LP_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-"""Environment of LocalCluster workers: one rasterizer / BLAS thread each (the workers are the parallelism)."""
-
 
 @dataclass
 class GenerateResult:
@@ -112,20 +109,6 @@ def sample_members(seed: int, index: int, options: dict, backgrounds: str | None
     """
     opts = SampleOptions(**{**options, "species": tuple(options.get("species", ()))})
     return encode_sample(make_sample(seed, index, opts, backgrounds=_pool(backgrounds, photo_fraction)))
-
-
-def _client(workers: int | None, scheduler: str | None):
-    """A distributed Client (and the LocalCluster it owns, or None)."""
-    from distributed import Client, LocalCluster
-
-    if scheduler is not None:
-        try:
-            return Client(scheduler, timeout="10s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.CRITICAL, env=dict(WORKER_ENV))  # failures: our own log line
-    return Client(cluster), cluster
 
 
 def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: int | None = None,
@@ -251,7 +234,7 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
         if len(shard["kept"]) == shard["count"]:
             _finish_shard(name, pending.pop(name), out, manifest, failures, res)
     if pending:
-        client, cluster = _client(workers or os.cpu_count() or 1, scheduler)
+        client, cluster = dask_client(workers or os.cpu_count() or 1, scheduler)
         try:
             write_manifest(out, manifest)  # the settings before any sample: stored samples are attributable
             res.workers = len(client.scheduler_info().get("workers", {}))

@@ -266,7 +266,7 @@ def _downsample(color: np.ndarray, labels: np.ndarray, f: int):
     return out, mask.astype(np.uint8)
 
 
-def _canonical_rbv(skeleton, azimuth_deg: float):
+def canonical_rbv(skeleton, azimuth_deg: float):
     """RBV levels 1–5 of the tree turned so that the camera looks from +Z (seed 003 §4.2.1)."""
     from treeform.structures import RadialBoundingVolume, TreeSkeleton
 
@@ -371,7 +371,7 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
         image = np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
     with timer.stage("rbv"):
-        rbv, rbv_h, rbv_r = _canonical_rbv(skeleton, azimuth)
+        rbv, rbv_h, rbv_r = canonical_rbv(skeleton, azimuth)
     cam_out = {"azimuth_deg": round(float(azimuth), 4), "elevation_deg": round(float(elevation), 4),
                "fov_y_deg": round(float(fov), 4), "position": [round(float(x), 5) for x in camera.position],
                "target": [round(float(x), 5) for x in camera.target]}

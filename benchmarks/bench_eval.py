@@ -1,0 +1,66 @@
+"""A fixed evaluation: synthetic cases, 3 per species by default, every single-photo method.
+
+    python benchmarks/bench_eval.py [--cases 21] [--methods envelope,learned] [--workers 2] [--write]
+
+Runs :func:`treeform.evaluation.evaluate` (the same as ``treeform eval``) into a fresh
+folder and prints the methods x scores table (median [95 % interval of the median]) with
+the wall-clock time; ``--write`` puts it into BENCHMARKS.md between ``<!-- eval:begin -->``
+and ``<!-- eval:end -->`` and into the README's evaluation section. Scores, not timings,
+are the point: every later change to a method shows its effect here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _common import machine, write_section  # benchmarks/ is on sys.path when a script runs
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=21)
+    ap.add_argument("--methods", default="envelope,learned")
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=None, help="keep the results here (default: a temporary folder)")
+    ap.add_argument("--write", action="store_true", help="put the table into BENCHMARKS.md and the README")
+    a = ap.parse_args()
+    from treeform.evaluation import evaluate
+    from treeform.evaluation.tables import markdown_table
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = a.out or Path(tmp) / "eval"
+        t0 = time.perf_counter()
+        res = evaluate(f"synthetic:{a.cases}", a.methods, out, seed=a.seed, workers=a.workers)
+        wall = time.perf_counter() - t0
+    table = markdown_table(res)
+    per_method = ", ".join(f"{m} {s['scores']['seconds']['median']:.2f} s" for m, s in res["aggregate"].items()
+                           if "seconds" in s["scores"])
+    text = (f"{a.cases} synthetic cases (seed {a.seed}), methods {a.methods}: {wall:.0f} s wall-clock on "
+            f"{a.workers} Dask worker(s), cluster start included (median reconstruction per case: {per_method}).\n"
+            f"Machine: {machine()}. Command: `python benchmarks/bench_eval.py --cases {a.cases} "
+            f"--methods {a.methods} --workers {a.workers}`.\n\n{table}")
+    print(text)
+    if a.write:
+        write_section(ROOT / "BENCHMARKS.md", "eval", "## Evaluation against ground truth (`treeform eval`)\n\n" + text)
+        readme = ROOT / "README.md"
+        md = readme.read_text()
+        new = re.sub(r"(<!-- eval:begin -->\n).*?(<!-- eval:end -->)", lambda m: m.group(1) + table + m.group(2), md,
+                     flags=re.S)
+        if new == md and "EVAL_TABLE" in md:
+            new = md.replace("EVAL_TABLE", f"<!-- eval:begin -->\n{table}<!-- eval:end -->")
+        readme.write_text(new)
+        print("wrote the eval sections of BENCHMARKS.md and README.md")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

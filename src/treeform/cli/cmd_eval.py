@@ -1,0 +1,33 @@
+"""``treeform eval``: score single-photo methods on the same cases against ground truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from treeform.cli.app import app, run_api
+
+
+@app.command("eval")
+def eval_cmd(
+    cases: str = typer.Option("synthetic:21", "--cases", help="synthetic:N (grown trees with full 3D ground truth) "
+                              "or photos:DIR (NAME_mask.png beside a photo is its true mask)."),
+    methods: str = typer.Option("envelope", "--methods", help="Comma-separated methods, e.g. envelope,learned."),
+    out: Path = typer.Option(..., "--out", "-o", help="Folder: results.json and cases/ (a rerun skips finished cases)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the synthetic cases and of every method."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores; "
+                                          "0 = in this process)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. tcp://host:8786."),
+):
+    """Reconstruct every case with every method and score it: front, side, back and top silhouettes, RBV, form metrics."""
+    from treeform.cli.progress import CountProgress
+    from treeform.evaluation import evaluate
+    from treeform.evaluation.tables import summary_lines
+
+    res = run_api(evaluate, cases, methods, out, seed=seed, workers=workers, scheduler=scheduler,
+                  display=CountProgress("cases"))
+    for line in summary_lines(res):
+        typer.echo(line)
+    typer.echo(f"results: {Path(out) / 'results.json'}")

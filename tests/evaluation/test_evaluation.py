@@ -1,0 +1,142 @@
+"""treeform eval: cases, scores against ground truth, failure isolation, resume."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError
+
+DEMO = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+
+
+def test_case_specs_are_parsed_and_bad_ones_named(tmp_path):
+    from treeform.evaluation import case_names
+
+    assert case_names("synthetic:2", seed=7) == ["synthetic-7-0", "synthetic-7-1"]
+    for bad in ("synthetic:0", "synthetic:x", "forest:3", f"photos:{tmp_path / 'missing'}"):
+        with pytest.raises(InputError, match="--cases"):
+            case_names(bad)
+    with pytest.raises(InputError, match="no photos"):
+        case_names(f"photos:{tmp_path}")
+
+
+def test_unknown_or_non_photo_methods_are_refused():
+    from treeform.evaluation.run import parse_methods
+
+    assert parse_methods("envelope, learned,envelope") == ["envelope", "learned"]
+    with pytest.raises(InputError, match="not a single-photo method"):
+        parse_methods("variations")
+    with pytest.raises(InputError, match="at least one"):
+        parse_methods(" , ")
+
+
+def _box(center, half, name="leaves"):
+    from treeform.structures import Mesh, MeshPart
+
+    c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float32) * half + center
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6),
+             (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    return MeshPart(c, np.zeros_like(c), np.zeros((8, 2)), None, np.array(faces), name=name)
+
+
+def test_novel_views_score_one_for_the_same_tree_and_see_a_wrong_depth(gl):
+    from treeform.evaluation import novel_view_ious
+    from treeform.structures import Mesh
+
+    tree = Mesh([_box((0.0, 3.0, 0.0), np.array([1.0, 3.0, 1.0], np.float32))])
+    same = novel_view_ious(tree, tree, size=64)
+    assert all(v == pytest.approx(1.0) for v in same.values()) and set(same) == {"iou_front", "iou_side",
+                                                                                  "iou_back", "iou_top"}
+    flat = Mesh([_box((0.0, 3.0, 0.0), np.array([1.0, 3.0, 0.25], np.float32))])  # right from the front, thin in depth
+    s = novel_view_ious(tree, flat, size=64)
+    assert s["iou_front"] > 0.95 and s["iou_back"] > 0.95
+    assert s["iou_side"] < 0.4 and s["iou_top"] < 0.4
+
+
+def test_canonical_mesh_turns_the_camera_onto_plus_z():
+    from treeform.evaluation.scores import canonical_mesh
+    from treeform.structures import Mesh
+
+    m = Mesh([_box((5.0, 0.0, 0.0), np.array([0.1, 0.1, 0.1], np.float32))])  # seen from azimuth 90 = from +X
+    c = canonical_mesh(m, (0.0, 0.0, 0.0), azimuth_deg=90.0, scale=2.0)
+    centre = c.parts[0].positions.mean(0)
+    assert np.allclose(centre, (0.0, 0.0, 10.0), atol=1e-4)
+    assert np.allclose(m.parts[0].positions.mean(0), (5.0, 0.0, 0.0))  # input unchanged
+
+
+def test_a_method_failing_on_one_case_costs_only_that_case_and_a_rerun_retries_it(tmp_path, gl, monkeypatch):
+    import treeform.evaluation.run as run
+    from treeform.evaluation import evaluate
+
+    real = run._entry
+    calls = []
+
+    def flaky(method):
+        f = real(method)
+
+        def wrapped(image, **kw):
+            calls.append(method)
+            if len(calls) == 2:
+                raise RuntimeError("boom\non two lines")
+            return f(image, **kw)
+        return wrapped
+
+    monkeypatch.setattr(run, "_entry", flaky)
+    r = evaluate("synthetic:2", "envelope", tmp_path / "ev", workers=0, size=128)
+    a, b = r["cases"]
+    s = a["methods"]["envelope"]
+    assert b["methods"]["envelope"] == {"error": "RuntimeError: boom on two lines"}
+    assert r["aggregate"]["envelope"]["cases"] == 2 and r["aggregate"]["envelope"]["failed"] == 1
+    # every score against the truth is there and in range
+    for k in ("front_iou", "front_iou_own", "segmentation_iou", "iou_side", "iou_back", "iou_top"):
+        assert 0.0 <= s[k] <= 1.0, k
+    assert s["front_iou"] > 0.5 and s["iou_front"] > 0.3
+    assert len([k for k in s if k.startswith("rbv_err_l")]) == 5 and s["stages"]["segment"] > 0
+    saved = json.loads((tmp_path / "ev" / "results.json").read_text())
+    assert saved["aggregate"]["envelope"]["scores"]["iou_side"]["n"] == 1
+    # rerun: the finished case is kept, the failed one retried (and now succeeds)
+    r2 = evaluate("synthetic:2", "envelope", tmp_path / "ev", workers=0, size=128)
+    assert r2["resumed"] == 1 and r2["evaluated"] == 1 and r2["aggregate"]["envelope"]["failed"] == 0
+    assert r2["cases"][0]["methods"]["envelope"] == {k: v for k, v in s.items()}
+
+
+def test_photo_cases_score_against_a_mask_file_and_a_corrupt_photo_costs_only_itself(tmp_path, gl):
+    from PIL import Image
+
+    from treeform.evaluation import evaluate
+    from treeform.segment import segment
+
+    d = tmp_path / "photos"
+    d.mkdir()
+    im = Image.open(DEMO).convert("RGB")
+    im.thumbnail((256, 256))
+    im.save(d / "a.jpg")
+    shutil.copy(d / "a.jpg", d / "b.jpg")
+    Image.fromarray(((segment(np.asarray(im)).labels > 0) * 255).astype(np.uint8)).save(d / "a_mask.png")
+    (d / "c.jpg").write_bytes(b"not a jpeg")
+    r = evaluate(f"photos:{d}", "envelope", tmp_path / "ev", workers=0)
+    by = {c["case"]: c for c in r["cases"]}
+    assert set(by) == {"photo-a", "photo-b", "photo-c"}
+    assert by["photo-a"]["mask_source"] == "mask file" and "front_iou" in by["photo-a"]["methods"]["envelope"]
+    assert by["photo-b"]["mask_source"] == "none" and "front_iou" not in by["photo-b"]["methods"]["envelope"]
+    assert "front_iou_own" in by["photo-b"]["methods"]["envelope"]
+    assert "error" in by["photo-c"] and "\n" not in by["photo-c"]["error"]
+    assert "iou_side" not in by["photo-a"]["methods"]["envelope"]  # no 3D truth for a photo
+
+
+def test_cli_eval_on_dask_writes_results_and_a_summary(tmp_path, gl):
+    from typer.testing import CliRunner
+
+    from treeform.cli.app import app
+
+    res = CliRunner().invoke(app, ["eval", "--cases", "synthetic:1", "--methods", "envelope", "--workers", "1",
+                                   "--out", str(tmp_path / "ev")])
+    assert res.exit_code == 0, res.output
+    assert "envelope: 1/1 ok" in res.output and "side IoU" in res.output
+    r = json.loads((tmp_path / "ev" / "results.json").read_text())
+    assert r["cases"][0]["methods"]["envelope"]["iou_side"] > 0.0
+    bad = CliRunner().invoke(app, ["eval", "--cases", "synthetic:1", "--methods", "nope", "--out", str(tmp_path / "x")])
+    assert bad.exit_code != 0 and "nope" in bad.output
