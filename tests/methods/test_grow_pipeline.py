@@ -39,6 +39,9 @@ def test_outputs_exist_and_agree(run):
     for key in ("nodes", "tips", "leaves", "triangles", "height", "crown_width"):
         assert key in metrics
     assert metrics["nodes"] == res.skeleton.n_nodes and metrics["leaves"] == len(res.foliage)
+    form = metrics["tree_form"]  # seed 003 §6 tree-form metrics
+    assert len(form["mrt_m"]) == 5 and form["tree_height_m"] >= metrics["height"]  # leaves reach above the nodes
+    assert form["leaf_area_index"] > 0 and form["biomass_m3"] > 0 and 0 < form["branching_angle_deg"] < 90
     assert set(metrics["timings"]) == set(STAGES)
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["method"] == "learned.grow" and cfg["config"]["species"] == "oak" and cfg["config"]["seed"] == 3

@@ -123,6 +123,20 @@ def test_mrt_per_layer_of_a_known_shape():
         max_radial_trunk_distance(s, layers=0)
 
 
+def test_mrt_is_measured_from_a_leaning_trunk_not_the_vertical_through_its_base():
+    # the same tree with its trunk leaning 8 m over 10 m: the branches keep their distance
+    # from the trunk, so the MRT is unchanged (the vertical axis would read up to 8 m more)
+    d = [0.5, 2.0, 3.0, 1.5, 0.8]
+    lean = 0.8
+    pos = [[lean * y, y, 0] for y in range(11)]
+    parent = [-1] + list(range(10))
+    for i, (y, di) in enumerate(zip([1, 3, 5, 7, 9], d)):
+        ang = i * 1.3
+        pos.append([lean * (y + 0.5) + di * np.cos(ang), y + 0.5, di * np.sin(ang)])
+        parent.append(y)
+    np.testing.assert_allclose(max_radial_trunk_distance(skel(pos, parent)), d, atol=1e-9)
+
+
 # --------------------------------------------------------------------------- LAI
 def test_lai_of_horizontal_cards():
     # four 1 m cards tiling a 2 m x 2 m square: one leaf layer

@@ -310,9 +310,11 @@ def max_radial_trunk_distance(skeleton: TreeSkeleton, *, layers: int = 5) -> np.
     The tree's height above the base (``tree_height(skeleton)``) is split into ``layers``
     equal slabs, layer 0 at the base (layer ``i`` holds ``i h / L <= y < (i+1) h / L``, the
     top one also ``y == h``). In each, the MRT is the largest horizontal distance of a
-    skeleton node from the trunk axis, the vertical line through the base node (the same
-    axis as the radial bounding volume, §4.1). A layer without nodes has MRT 0; nodes below
-    the base are ignored.
+    skeleton node from the trunk: the trunk chain (root, then continuation children, as
+    the meshes draw it) read at the node's height, linearly between its nodes, its top
+    node's position above it. A leaning trunk is measured from itself, not from the
+    vertical through the base (a leaning oak's crown would otherwise read metres wide at
+    every layer). A layer without nodes has MRT 0; nodes below the base are ignored.
 
     Parameters
     ----------
@@ -333,9 +335,15 @@ def max_radial_trunk_distance(skeleton: TreeSkeleton, *, layers: int = 5) -> np.
     out = np.zeros(n)
     if h <= 0:
         return out
+    trunk = local[_trunk(s)]
+    # the trunk's (x, z) as a function of height: heights made non-decreasing along the chain
+    ty = np.maximum.accumulate(trunk[:, 1])
     keep = y >= 0
-    idx = np.clip(np.floor(y[keep] / h * n).astype(np.int64), 0, n - 1)
-    np.maximum.at(out, idx, np.hypot(local[keep, 0], local[keep, 2]))
+    yk = y[keep]
+    ax = np.interp(yk, ty, trunk[:, 0])
+    az = np.interp(yk, ty, trunk[:, 2])
+    idx = np.clip(np.floor(yk / h * n).astype(np.int64), 0, n - 1)
+    np.maximum.at(out, idx, np.hypot(local[keep, 0] - ax, local[keep, 2] - az))
     return out
 
 
