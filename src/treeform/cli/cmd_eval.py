@@ -20,14 +20,16 @@ def eval_cmd(
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores; "
                                           "0 = in this process)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. tcp://host:8786."),
+    viewer: int = typer.Option(4, "--viewer", help="Cases whose true and reconstructed trees go into report.html's "
+                               "3D viewer (about 15 MB each)."),
 ):
-    """Reconstruct every case with every method and score it: front, side, back and top silhouettes, RBV, form metrics."""
+    """Reconstruct every case with every method and score it (silhouettes from four sides, RBV, form metrics); report.html."""
     from treeform.cli.progress import CountProgress
     from treeform.evaluation import evaluate
     from treeform.evaluation.tables import summary_lines
 
-    res = run_api(evaluate, cases, methods, out, seed=seed, workers=workers, scheduler=scheduler,
+    res = run_api(evaluate, cases, methods, out, seed=seed, workers=workers, scheduler=scheduler, viewer=viewer,
                   display=CountProgress("cases"))
     for line in summary_lines(res):
         typer.echo(line)
-    typer.echo(f"results: {Path(out) / 'results.json'}")
+    typer.echo(f"results: {Path(out) / 'results.json'}; report: {Path(out) / 'report.html'}")

@@ -44,8 +44,57 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"[:300]
 
 
-def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_size: int = 160) -> dict:
+def _save_image(path: Path, img) -> str:
+    from PIL import Image
+
+    Image.fromarray(img).save(path, quality=88) if path.suffix == ".jpg" else Image.fromarray(img).save(path)
+    return path.name
+
+
+def _over_white(rgba):
+    a = rgba[..., 3:4].astype(np.float32) / 255.0
+    return np.clip(rgba[..., :3] * a + 255.0 * (1.0 - a), 0, 255).astype(np.uint8)
+
+
+def _thumbs(rec, folder: Path, method: str) -> dict:
+    """The method's front view (the photo's frame) and side view as PNGs over white."""
+    from treeform.report import photo_window
+
+    front = rec.renders["front"]
+    win = photo_window(front.camera, rec.camera)
+    return {"front": _save_image(folder / f"{method}_front.png", _over_white(front.color[win])),
+            "side": _save_image(folder / f"{method}_side.png", _over_white(rec.renders["side"].color))}
+
+
+def _viewer_glb(mesh, path: Path, *, texture_size: int = 256) -> str:
+    """A light GLB for the report's viewer: textures at most ``texture_size`` px, no normal maps."""
+    from dataclasses import replace
+
+    import cv2
+
+    from treeform.io.gltf import write_glb
+    from treeform.structures import Mesh
+
+    def small(tex):
+        if tex is None or max(tex.shape[:2]) <= texture_size:
+            return tex
+        s = texture_size / max(tex.shape[:2])
+        return cv2.resize(tex, (max(1, round(tex.shape[1] * s)), max(1, round(tex.shape[0] * s))),
+                          interpolation=cv2.INTER_AREA)
+
+    parts = [replace(p, material=replace(p.material, texture=small(p.material.texture), normal_texture=None))
+             for p in mesh.parts]
+    write_glb(Mesh(parts), path)
+    return path.name
+
+
+def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_size: int = 160, folder=None,
+             glb: bool = False) -> dict:
     """Load case ``name``, reconstruct it with each method and score it; never raises.
+
+    ``folder``: where the case's pictures go (photo, true mask, each method's front and side
+    view) and, with ``glb``, the true tree and each reconstruction as GLBs in the photo
+    camera's frame at the true height (what the report's 3D viewer shows side by side).
 
     Returns
     -------
@@ -64,6 +113,18 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
         res["error"] = _one_line(exc)
         return res
     res.update(mask_source=case.mask_source, species=case.species, methods={})
+    files = {}
+    if folder is not None:
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        files["photo"] = _save_image(folder / "photo.jpg", case.image)
+        if case.gt_mask is not None:
+            files["gt_mask"] = _save_image(folder / "gt_mask.png", (np.asarray(case.gt_mask) * 255).astype(np.uint8))
+        if glb and case.gt_mesh is not None:
+            from treeform.evaluation.scores import canonical_mesh
+
+            gt = canonical_mesh(case.gt_mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
+            files["gt_glb"] = _viewer_glb(gt, folder / "gt.glb")
     for m in methods:
         stages = {}
 
@@ -80,6 +141,19 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
             res["methods"][m] = {"error": _one_line(exc)}
             continue
         res["methods"][m] = {**scores, "seconds": round(seconds, 3), "stages": stages}
+        if folder is not None:
+            try:
+                files[m] = _thumbs(rec, folder, m)
+                if glb and case.gt_mesh is not None:
+                    from treeform.evaluation.scores import canonical_mesh, reconstruction_scale
+
+                    root = rec.skeleton.positions[0]
+                    files[m]["glb"] = _viewer_glb(canonical_mesh(rec.mesh, root, scale=reconstruction_scale(rec, case)),
+                                                  folder / f"{m}.glb")
+            except Exception as exc:  # pictures are extras: their failure is noted, the scores stay
+                files[m] = {"error": _one_line(exc)}
+    if files:
+        res["files"] = files
     return res
 
 
@@ -115,7 +189,8 @@ def _write_json(path: Path, obj) -> None:
 
 
 def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed: int = 0, size: int = 256,
-             workers: int | None = None, scheduler: str | None = None, progress=None) -> dict:
+             workers: int | None = None, scheduler: str | None = None, viewer: int = 4, report: bool = True,
+             progress=None) -> dict:
     """Score single-photo methods on the same cases (``treeform eval``).
 
     Parameters
@@ -135,6 +210,12 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
         Local Dask worker processes; 0 runs in this process (no Dask). Default: the cores.
     scheduler : str, optional
         A running Dask scheduler (``tcp://HOST:PORT``) instead of a local cluster.
+    viewer : int
+        The first ``viewer`` cases keep GLBs of the true tree and each reconstruction for
+        the report's 3D viewer (about 15 MB a case: GLBs and their viewer scripts); the others keep
+        pictures only.
+    report : bool
+        Write ``report.html`` (with ``out``): :func:`treeform.report.write_eval_report`.
     progress : callable, optional
         ``progress(done, total)`` after each case.
 
@@ -180,9 +261,13 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
 
     if progress is not None:
         progress(len(results), len(names))
+    def task_args(n):
+        folder = out_dir / CASE_DIR / display_name(n) if out_dir is not None else None
+        return dict(seed=seed, size=size, folder=folder, glb=names.index(n) < int(viewer))
+
     if todo and workers == 0:
         for n in todo:
-            finish(n, run_case(n, meths, seed=seed, size=size))
+            finish(n, run_case(n, meths, **task_args(n)))
     elif todo:
         from distributed import as_completed
 
@@ -190,7 +275,7 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
 
         client, cluster = dask_client(workers or os.cpu_count() or 1, scheduler)
         try:
-            futs = {client.submit(run_case, n, meths, seed=seed, size=size, key=f"eval-{display_name(n)}-{seed}",
+            futs = {client.submit(run_case, n, meths, **task_args(n), key=f"eval-{display_name(n)}-{seed}",
                                   pure=False): n for n in todo}
             for fut in as_completed(futs):
                 n = futs[fut]
@@ -209,4 +294,9 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
            "aggregate": aggregate(ordered, meths, seed=seed), "cases": ordered}
     if out_dir is not None:
         _write_json(out_dir / "results.json", res)
+        if report:
+            from treeform.evaluation.tables import SUMMARY_SCORES
+            from treeform.report import write_eval_report
+
+            write_eval_report(res, out_dir, columns=SUMMARY_SCORES)
     return res

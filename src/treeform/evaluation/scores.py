@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-__all__ = ["VIEWS", "canonical_mesh", "novel_view_ious", "rbv_errors", "score_reconstruction"]
+__all__ = ["VIEWS", "canonical_mesh", "novel_view_ious", "rbv_errors", "reconstruction_scale", "score_reconstruction"]
 
 VIEWS = {"front": (0.0, 0.0), "side": (90.0, 0.0), "back": (180.0, 0.0), "top": (0.0, 90.0)}
 """View name -> (azimuth, elevation) in degrees in the photo camera's frame (front = +Z)."""
@@ -67,6 +67,19 @@ def canonical_mesh(mesh, root, *, azimuth_deg: float = 0.0, scale: float = 1.0):
 def _height(mesh, root_y: float = 0.0) -> float:
     lo, hi = mesh.bounds()
     return float(hi[1] - root_y)
+
+
+def reconstruction_scale(rec, case) -> float:
+    """Factor that gives the reconstruction the true tree's height above its base (1 without a truth).
+
+    A single photo fixes a tree's shape, not its size (every method takes the height as an
+    option), so the views compare shapes at the true height.
+    """
+    if case.gt_mesh is None or case.gt_skeleton is None:
+        return 1.0
+    h_rec = _height(rec.mesh, float(rec.skeleton.positions[0][1]))
+    h_gt = _height(case.gt_mesh, float(case.gt_skeleton.positions[0][1]))
+    return h_gt / h_rec if h_rec > 0 else 1.0
 
 
 def _view_camera(lo: np.ndarray, hi: np.ndarray, azimuth: float, elevation: float, size: int):
@@ -186,12 +199,9 @@ def score_reconstruction(rec, case, *, view_size: int = 160) -> dict:
     """
     out = _front(rec, case.gt_mask)
     if case.gt_mesh is not None and case.gt_skeleton is not None:
-        root = case.gt_skeleton.positions[0]
-        gt = canonical_mesh(case.gt_mesh, root, azimuth_deg=case.azimuth_deg)
-        rec_root = rec.skeleton.positions[0]
-        h_rec = _height(rec.mesh, float(rec_root[1]))
-        scale = _height(gt) / h_rec if h_rec > 0 else 1.0
-        out.update(novel_view_ious(gt, canonical_mesh(rec.mesh, rec_root, scale=scale), size=view_size))
+        gt = canonical_mesh(case.gt_mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
+        rec_mesh = canonical_mesh(rec.mesh, rec.skeleton.positions[0], scale=reconstruction_scale(rec, case))
+        out.update(novel_view_ious(gt, rec_mesh, size=view_size))
     if case.rbv is not None:
         for i, e in enumerate(rbv_errors(rec.skeleton, case.rbv)):
             out[f"rbv_err_l{i + 1}"] = e

@@ -1,4 +1,6 @@
-"""Pictures of results: preview strips and overlays."""
+"""Pictures of results: preview strips and overlays; the evaluation's HTML page with a 3D viewer."""
+
+from treeform.report.eval_page import write_eval_report
 
 from treeform.report.preview import (
     PREVIEW_LABELS,
@@ -12,4 +14,4 @@ from treeform.report.preview import (
 )
 
 __all__ = ["PREVIEW_LABELS", "compose_strip", "over_checkerboard", "photo_window", "preview_cameras",
-           "preview_strip", "preview_windows", "segmentation_overlay"]
+           "preview_strip", "preview_windows", "segmentation_overlay", "write_eval_report"]
