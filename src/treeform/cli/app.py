@@ -155,6 +155,8 @@ def reconstruct(
     colonization: Optional[Colonization] = typer.Option(
         None, "--colonization", help="envelope: space colonization 'coarse' (default: D = 0.04 r) or 'paper' "
                                      "(full detail: d_k = 0.01 r, D = 0.5 d_k; slower, many more nodes)."),
+    report: bool = typer.Option(False, "--report", help="Also write report.html: pictures, metrics, stage times, "
+                                "the tree in a 3D viewer (opens offline)."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
@@ -200,6 +202,19 @@ def reconstruct(
                       texture_size=texture_size,
                       leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)
     print_summary(res)
+    if report:
+        write_report(out, f"treeform reconstruct --method {method.value}: {Path(photo).name}",
+                     getattr(res, "rbv", None))
+
+
+def write_report(out: Path, title: str, rbv=None) -> None:
+    """report.html in ``out`` (``--report`` of reconstruct and grow), with the RBV's picture when given."""
+    from treeform.report import write_run_report
+    from treeform.report.rbv_plot import plot_rbv
+
+    pictures = [("radial bounding volume: top and side", plot_rbv(rbv))] if rbv is not None else []
+    page = run_api(write_run_report, out, title=title, pictures=pictures, stages=("report",))
+    typer.echo(f"report: {page}")
 
 
 @app.command()

@@ -23,6 +23,8 @@ def grow(
     foliage: FoliageKind = typer.Option(FoliageKind.auto, "--foliage",
                                         help="Leaf cards: broadleaf, needles or scales; auto: the species'."),
     texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
+    report: bool = typer.Option(False, "--report", help="Also write report.html: preview, metrics, stage times, "
+                                "the tree in a 3D viewer (opens offline)."),
 ):
     """Grow a leafy 3D tree of a species with a bud-based developmental model (Li et al. 2021)."""
     from treeform.methods.learned.grow import STAGES, grow_tree
@@ -35,3 +37,7 @@ def grow(
     typer.echo(f"{m['species']}: {m['nodes']} branches, {m['leaves']} leaves, {m['triangles']} triangles, "
                f"{m['height']:.1f} m tall, crown {m['crown_extent_x']:.1f} x {m['crown_extent_z']:.1f} m "
                f"(width {m['crown_width']:.1f} m), {m['total_seconds']:.2f} s -> {out}")
+    if report:
+        from treeform.cli.app import write_report
+
+        write_report(out, f"treeform grow --species {species} --seed {seed}")

@@ -1,6 +1,7 @@
 """Pictures of results: preview strips and overlays; the evaluation's HTML page with a 3D viewer."""
 
 from treeform.report.eval_page import write_eval_report
+from treeform.report.run_page import write_run_report
 
 from treeform.report.preview import (
     PREVIEW_LABELS,
@@ -14,4 +15,4 @@ from treeform.report.preview import (
 )
 
 __all__ = ["PREVIEW_LABELS", "compose_strip", "over_checkerboard", "photo_window", "preview_cameras",
-           "preview_strip", "preview_windows", "segmentation_overlay", "write_eval_report"]
+           "preview_strip", "preview_windows", "segmentation_overlay", "write_eval_report", "write_run_report"]

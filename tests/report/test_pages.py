@@ -1,4 +1,4 @@
-"""The evaluation's report.html in a real browser (headless Chromium through playwright)."""
+"""report.html pages (evaluation, single run) in a real browser (headless Chromium through playwright)."""
 
 import shutil
 
@@ -30,12 +30,13 @@ def test_the_page_holds_the_numbers_and_pictures_of_the_results(report):
     assert "gt_glb" in first["files"] and "gt_glb" not in second["files"]  # viewer=1: GLBs for the first case only
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium here (Debian: apt-get install chromium)")
-def test_report_opens_in_headless_chromium_without_errors_and_the_viewer_draws(report, tmp_path):
+def _open(page_path, shot_path):
+    """Open a page from the file system in headless Chromium; (console errors, viewer state, canvas pixels)."""
+    if CHROMIUM is None:
+        pytest.skip("no Chromium here (Debian: apt-get install chromium)")
     sync_playwright = pytest.importorskip("playwright.sync_api", reason="playwright not installed").sync_playwright
     from PIL import Image
 
-    out, res = report
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM,
                                     args=["--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"])
@@ -44,16 +45,44 @@ def test_report_opens_in_headless_chromium_without_errors_and_the_viewer_draws(r
             errors = []
             page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
             page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto((out / "report.html").as_uri())  # from the file system: no server
+            page.goto(page_path.as_uri())  # from the file system: no server
             page.wait_for_function("window.treeformViewerState && (window.treeformViewerState.done"
                                    " || window.treeformViewerState.error)", timeout=120_000)
             state = page.evaluate("window.treeformViewerState")
-            page.locator("#tf-viewer").screenshot(path=str(tmp_path / "viewer.png"))
-            cell = page.locator("td[data-key='front_iou'][data-method='envelope']").inner_text()
+            page.locator("#tf-viewer").screenshot(path=str(shot_path))
+            cells = {k: page.locator(f"td[data-key='{k}']").first.inner_text()
+                     for k in page.eval_on_selector_all("td[data-key]", "els => els.map(e => e.dataset.key)")}
         finally:
             browser.close()
+    return errors, state, np.asarray(Image.open(shot_path).convert("L"), float), cells
+
+
+def test_eval_report_opens_in_headless_chromium_without_errors_and_the_viewer_draws(report, tmp_path):
+    out, res = report
+    errors, state, shot, cells = _open(out / "report.html", tmp_path / "viewer.png")
     assert errors == []
     assert state["error"] is None and state["loaded"] == state["expected"] == 2  # truth + envelope GLBs
-    shot = np.asarray(Image.open(tmp_path / "viewer.png").convert("L"), float)
     assert shot.std() > 8.0  # trees drawn, not a blank canvas
-    assert cell.split()[0] == f"{res['aggregate']['envelope']['scores']['front_iou']['median']:.4g}"
+    assert cells["front_iou"].split()[0] == f"{res['aggregate']['envelope']['scores']['front_iou']['median']:.4g}"
+
+
+def test_grow_report_shows_the_tree_and_its_metrics(tmp_path, gl):
+    from treeform.methods.learned.grow import grow_tree
+    from treeform.report import write_run_report
+
+    res = grow_tree("birch", seed=1, out=tmp_path / "t", lod="low")
+    page = write_run_report(tmp_path / "t", title="grow birch")
+    text = page.read_text()
+    assert "preview.png" in text and (tmp_path / "t" / "tree.glb.js").exists()
+    errors, state, shot, cells = _open(page, tmp_path / "viewer.png")
+    assert errors == [] and state["loaded"] == 1 and shot.std() > 8.0
+    assert cells["nodes"] == str(res.metrics["nodes"])
+    assert cells["tree_form.biomass_m3"] == f"{res.metrics['tree_form']['biomass_m3']:.4g}"
+
+
+def test_a_run_report_needs_the_runs_metrics(tmp_path):
+    from treeform._shared.errors import InputError
+    from treeform.report import write_run_report
+
+    with pytest.raises(InputError, match="metrics.json"):
+        write_run_report(tmp_path, title="nothing here")
