@@ -26,6 +26,7 @@ def test_the_page_holds_the_numbers_and_pictures_of_the_results(report):
         for f in (c["files"]["photo"], c["files"]["envelope"]["front"], c["files"]["envelope"]["side"]):
             assert f"cases/{c['case']}/{f}" in page and (out / "cases" / c["case"] / f).exists()
     assert (out / "assets" / "three-modules.js").stat().st_size > 1_000_000 and (out / "boxplots.png").exists()
+    assert "species_envelope.png" in page and (out / "species_envelope.png").exists()  # form errors per species
     first, second = res["cases"]
     assert "gt_glb" in first["files"] and "gt_glb" not in second["files"]  # viewer=1: GLBs for the first case only
 

@@ -62,6 +62,36 @@ def _box_plot_png(res: dict, columns, out_dir: Path) -> str | None:
     return "boxplots.png"
 
 
+_FORM = (("rel_err_height", "height rel. err."), ("rel_err_trunk_diameter", "trunk diam. rel. err."),
+         ("rel_err_biomass", "biomass rel. err."), ("abs_err_branching_angle_deg", "branch angle err. °"))
+
+
+def _species_box_plots(res: dict, out_dir: Path) -> list:
+    """Per method, the tree-form metric errors grouped by species (seed 003 Fig. 18 style)."""
+    from PIL import Image
+
+    from treeform.report.plots import box_plots
+
+    out = []
+    for m in res["aggregate"]:
+        data: dict = {}
+        for c in res["cases"]:
+            s = c.get("methods", {}).get(m, {})
+            if c.get("species") is None or "error" in s:
+                continue
+            for k, _ in _FORM:
+                if isinstance(s.get(k), (int, float)):
+                    data.setdefault(c["species"], {}).setdefault(k, []).append(float(s[k]))
+        keys = [(k, t) for k, t in _FORM if any(k in d for d in data.values())]
+        if not keys:
+            continue
+        data = {sp: {k: np.array(d.get(k, []), float) for k, _ in keys} for sp, d in sorted(data.items())}
+        name = f"species_{m}.png"
+        Image.fromarray(box_plots(data, [k for k, _ in keys], titles=dict(keys), cols=4)).save(out_dir / name)
+        out.append((m, name))
+    return out
+
+
 def write_eval_report(res: dict, out_dir, *, columns) -> Path:
     """Write ``out_dir/report.html`` for the results of an evaluation.
 
@@ -110,6 +140,9 @@ def write_eval_report(res: dict, out_dir, *, columns) -> Path:
     box = _box_plot_png(res, cols, out_dir)
     if box:
         h.append(f"<h2>Per-case distributions</h2><img src='{box}' alt='box plots' style='max-width:100%'>")
+    for m, name in _species_box_plots(res, out_dir):
+        h.append(f"<h2>{html.escape(m)}: tree-form errors per species</h2>"
+                 f"<img src='{name}' alt='{html.escape(m)} per species' style='max-width:100%'>")
 
     viewer_cases = []
     rows = []
