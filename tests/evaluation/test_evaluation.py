@@ -101,6 +101,8 @@ def test_a_method_failing_on_one_case_costs_only_that_case_and_a_rerun_retries_i
     r2 = evaluate("synthetic:2", "envelope", tmp_path / "ev", workers=0, size=128)
     assert r2["resumed"] == 1 and r2["evaluated"] == 1 and r2["aggregate"]["envelope"]["failed"] == 0
     assert r2["cases"][0]["methods"]["envelope"] == {k: v for k, v in s.items()}
+    # another photo size is another evaluation: nothing is resumed from this one
+    assert evaluate("synthetic:1", "envelope", tmp_path / "ev", workers=0, size=96)["resumed"] == 0
 
 
 def test_photo_cases_score_against_a_mask_file_and_a_corrupt_photo_costs_only_itself(tmp_path, gl):
@@ -119,12 +121,13 @@ def test_photo_cases_score_against_a_mask_file_and_a_corrupt_photo_costs_only_it
     (d / "c.jpg").write_bytes(b"not a jpeg")
     r = evaluate(f"photos:{d}", "envelope", tmp_path / "ev", workers=0)
     by = {c["case"]: c for c in r["cases"]}
-    assert set(by) == {"photo-a", "photo-b", "photo-c"}
-    assert by["photo-a"]["mask_source"] == "mask file" and "front_iou" in by["photo-a"]["methods"]["envelope"]
-    assert by["photo-b"]["mask_source"] == "none" and "front_iou" not in by["photo-b"]["methods"]["envelope"]
-    assert "front_iou_own" in by["photo-b"]["methods"]["envelope"]
-    assert "error" in by["photo-c"] and "\n" not in by["photo-c"]["error"]
-    assert "iou_side" not in by["photo-a"]["methods"]["envelope"]  # no 3D truth for a photo
+    assert set(by) == {"photo-a.jpg", "photo-b.jpg", "photo-c.jpg"}
+    a, b, c = by["photo-a.jpg"], by["photo-b.jpg"], by["photo-c.jpg"]
+    assert a["mask_source"] == "mask file" and "front_iou" in a["methods"]["envelope"]
+    assert b["mask_source"] == "none" and "front_iou" not in b["methods"]["envelope"]
+    assert "front_iou_own" in b["methods"]["envelope"]
+    assert "error" in c and "\n" not in c["error"]
+    assert "iou_side" not in a["methods"]["envelope"]  # no 3D truth for a photo
 
 
 def test_cli_eval_on_dask_writes_results_and_a_summary(tmp_path, gl):

@@ -84,10 +84,10 @@ def case_names(cases: str, *, seed: int = 0) -> list[str]:
 
 
 def display_name(name: str) -> str:
-    """Short, file-safe name of a case (``photo:/a/b/oak.jpg`` -> ``photo-oak``)."""
+    """Short, file-safe name of a case (``photo:/a/b/oak.jpg`` -> ``photo-oak.jpg``)."""
     if name.startswith("photo:"):
-        stem = Path(name[len("photo:"):]).stem
-        return "photo-" + "".join(c if c.isalnum() or c in "-_." else "_" for c in stem)
+        base = Path(name[len("photo:"):]).name
+        return "photo-" + "".join(c if c.isalnum() or c in "-_." else "_" for c in base)
     return name
 
 

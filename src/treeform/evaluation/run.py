@@ -106,7 +106,7 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
     from treeform.evaluation.cases import display_name, load_case
     from treeform.evaluation.scores import score_reconstruction
 
-    res = {"case": display_name(name), "source": name}
+    res = {"case": display_name(name), "source": name, "size": int(size)}
     try:
         case = load_case(name, size=size)
     except Exception as exc:  # a corrupt case costs only this case
@@ -246,7 +246,8 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
                     r = json.loads(f.read_text())
                 except ValueError:
                     continue
-                if "error" not in r and all(m in r.get("methods", {}) and "error" not in r["methods"][m] for m in meths):
+                if ("error" not in r and r.get("size") == int(size)
+                        and all(m in r.get("methods", {}) and "error" not in r["methods"][m] for m in meths)):
                     done[n] = r
     todo = [n for n in names if n not in done]
     results = dict(done)
@@ -261,6 +262,7 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
 
     if progress is not None:
         progress(len(results), len(names))
+
     def task_args(n):
         folder = out_dir / CASE_DIR / display_name(n) if out_dir is not None else None
         return dict(seed=seed, size=size, folder=folder, glb=names.index(n) < int(viewer))
