@@ -24,6 +24,39 @@ from _common import machine, write_section  # benchmarks/ is on sys.path when a 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def screenshot(page_path: Path, dest: Path) -> None:
+    """The report's summary table beside its 3D viewer, as headless Chromium shows them."""
+    import shutil
+
+    from PIL import Image
+    from playwright.sync_api import sync_playwright
+
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=exe, args=["--use-gl=swiftshader", "--enable-unsafe-swiftshader",
+                                                               "--no-sandbox"])
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.goto(page_path.as_uri())
+        page.wait_for_function("window.treeformViewerState && window.treeformViewerState.done", timeout=180_000)
+        tmp = dest.with_suffix(".parts")
+        tmp.mkdir(exist_ok=True)
+        page.locator("#summary").screenshot(path=str(tmp / "summary.png"))
+        page.locator("#tf-viewer").screenshot(path=str(tmp / "viewer.png"))
+        browser.close()
+    # the summary table beside the 3D viewer (truth, then each method), on one white canvas
+    table, viewer = Image.open(tmp / "summary.png").convert("RGB"), Image.open(tmp / "viewer.png").convert("RGB")
+    scale = table.height / viewer.height
+    viewer = viewer.resize((round(viewer.width * scale), table.height), Image.LANCZOS)
+    canvas = Image.new("RGB", (table.width + 16 + viewer.width, table.height), "white")
+    canvas.paste(table, (0, 0))
+    canvas.paste(viewer, (table.width + 16, 0))
+    if canvas.width > 1400:
+        canvas = canvas.resize((1400, round(canvas.height * 1400 / canvas.width)), Image.LANCZOS)
+    canvas.save(dest, quality=88)
+    shutil.rmtree(tmp)
+    print(f"screenshot: {dest}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=21)
@@ -32,6 +65,8 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=None, help="keep the results here (default: a temporary folder)")
     ap.add_argument("--write", action="store_true", help="put the table into BENCHMARKS.md and the README")
+    ap.add_argument("--screenshot", type=Path, default=None,
+                    help="save a picture of report.html here (headless Chromium; e.g. docs/images/eval_report.jpg)")
     a = ap.parse_args()
     from treeform.evaluation import evaluate
     from treeform.evaluation.tables import markdown_table
@@ -41,6 +76,8 @@ def main() -> int:
         t0 = time.perf_counter()
         res = evaluate(f"synthetic:{a.cases}", a.methods, out, seed=a.seed, workers=a.workers)
         wall = time.perf_counter() - t0
+        if a.screenshot is not None:
+            screenshot(out / "report.html", a.screenshot)
     table = markdown_table(res)
     per_method = ", ".join(f"{m} {s['scores']['seconds']['median']:.2f} s" for m, s in res["aggregate"].items()
                            if "seconds" in s["scores"])
