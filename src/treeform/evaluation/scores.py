@@ -147,7 +147,7 @@ def _form_errors(rec, case) -> dict:
     from treeform.metrics import tree_metrics
 
     g = tree_metrics(case.gt_skeleton)
-    r = tree_metrics(rec.skeleton, rec.foliage)
+    r = tree_metrics(rec.skeleton)  # skeletons alone on both sides (the truth keeps no foliage)
     out = {}
     for k, name in (("tree_height_m", "height"), ("trunk_diameter_m", "trunk_diameter"), ("biomass_m3", "biomass")):
         gv, rv = float(g[k]), float(r[k])
@@ -176,7 +176,11 @@ def _front(rec, gt_mask) -> dict:
             gt = cv2.resize(gt.astype(np.uint8), mask.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
         out["front_error"] = round(float(reprojection_error(mask, gt)), 4)
         out["front_iou"] = round(float(iou(mask, gt)), 4)
-        out["segmentation_iou"] = round(float(iou(own if own.shape == gt.shape else mask, gt)), 4)
+        if own.shape != gt.shape:
+            import cv2
+
+            own = cv2.resize(own.astype(np.uint8), gt.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
+        out["segmentation_iou"] = round(float(iou(own, gt)), 4)
     return out
 
 
