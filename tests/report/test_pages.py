@@ -81,6 +81,21 @@ def test_grow_report_shows_the_tree_and_its_metrics(tmp_path, gl):
     assert cells["tree_form.biomass_m3"] == f"{res.metrics['tree_form']['biomass_m3']:.4g}"
 
 
+def test_cloud_report_shows_the_billboard_cloud_and_its_metrics(tmp_path, gl):
+    from pathlib import Path
+
+    from treeform.methods.variations.cloud import cloud
+
+    oak = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "library" / "oak_1.png"
+    res = cloud(oak, out=tmp_path / "oak.glb", report=tmp_path / "oak_report", size=256, segments=48)
+    page = res.files["report"]
+    assert page == tmp_path / "oak_report" / "report.html" and (tmp_path / "oak_report" / "oak.glb.js").exists()
+    errors, state, shot, cells = _open(page, tmp_path / "viewer.png")
+    assert errors == [] and state["error"] is None and state["loaded"] == 1
+    assert shot.std() > 8.0  # billboards drawn, not a blank canvas
+    assert cells["billboards"] == str(res.metrics["billboards"]) and cells["iou"] == f"{res.metrics['iou']:.4g}"
+
+
 def test_a_run_report_needs_the_runs_metrics(tmp_path):
     from treeform._shared.errors import InputError
     from treeform.report import write_run_report

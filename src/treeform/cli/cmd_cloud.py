@@ -21,16 +21,22 @@ def cloud_cmd(
     views: Optional[Path] = typer.Option(None, "--views",
                                          help="Also write picture | front | 30° | 60° | 90° views (PNG)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
+    report: bool = typer.Option(False, "--report",
+                                help="Also write <OUT stem>_report/report.html beside OUT: input, alpha and "
+                                     "crown/trunk split, views (with --views), metrics incl. front-view PSNR/SSIM/IoU, "
+                                     "stage times, the cloud in a 3D viewer (opens offline)."),
 ):
     """Picture of a tree -> billboard cloud: alpha-tested cards at depth (GLB) with a JSON description."""
     from treeform.methods.variations.cloud import CLOUD_STAGES, cloud
 
     res = run_api(cloud, image, out=out, views=views, segments=segments, compactness=compactness, seed=seed,
-                  segmenter=segmenter.value,
-                  stages=CLOUD_STAGES)
+                  segmenter=segmenter.value, report=out.with_name(f"{out.stem}_report") if report else None,
+                  stages=CLOUD_STAGES + (("report",) if report else ()))
     m = res.metrics
     line = (f"{out}: {m['billboards']} billboards (front {m['front']}, rear {m['rear']}, interior {m['interior']}, "
             f"trunk {m['trunk']}), atlas {m['atlas'][0]}x{m['atlas'][1]}, sidecar {out.with_suffix('.json')}")
     if "psnr" in m:
         line += f"; front view PSNR {m['psnr']:.1f} dB, SSIM {m['ssim']:.3f}, IoU {m['iou']:.3f}"
     typer.echo(line)
+    if report:
+        typer.echo(f"report: {res.files['report']}")

@@ -33,12 +33,12 @@ def _make_parents(directory: Path, what: str) -> None:
         raise OutputError(f"{what}: cannot create {directory} ({exc.strerror or exc})") from None
 
 
-def check_out_dir(out) -> Path:
+def check_out_dir(out, what: str = "--out") -> Path:
     """Fail early, with one line, if ``out`` cannot become an output folder.
 
     ``out`` may exist (a folder) or not; its missing parent folders are created (as
     ``mkdir -p`` would) when the nearest existing one is writable. ``out`` itself appears
-    only when the outputs are written.
+    only when the outputs are written. ``what`` names the option in the error line.
 
     Examples
     --------
@@ -48,12 +48,12 @@ def check_out_dir(out) -> Path:
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out}: exists and is not a directory")
+        raise OutputError(f"{what} {out}: exists and is not a directory")
     if out.exists():
         if not os.access(out, os.W_OK | os.X_OK):
-            raise OutputError(f"--out {out}: directory is not writable")
+            raise OutputError(f"{what} {out}: directory is not writable")
         return out
-    _make_parents(out.parent, f"--out {out}")
+    _make_parents(out.parent, f"{what} {out}")
     return out
 
 

@@ -36,10 +36,10 @@ def _fmt(v) -> str:
     return "–" if v is None else (f"{v:.3g}" if isinstance(v, float) else html.escape(str(v)))
 
 
-def _glb_script(glb: Path, key: str) -> str:
-    """Write ``glb``'s bytes as a script beside it (``NAME.glb.js``); returns its file name."""
+def _glb_script(glb: Path, key: str, folder: Path | None = None) -> str:
+    """Write ``glb``'s bytes as a script ``NAME.glb.js`` in ``folder`` (default: beside it); returns its file name."""
     b64 = base64.b64encode(glb.read_bytes()).decode("ascii")
-    js = glb.with_name(glb.name + ".js")
+    js = (glb.parent if folder is None else Path(folder)) / (glb.name + ".js")
     js.write_text(f"(window.__tf_glb = window.__tf_glb || {{}})[{json.dumps(key)}] = \"{b64}\";\n")
     return js.name
 

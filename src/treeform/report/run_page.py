@@ -1,9 +1,10 @@
-"""``report.html`` for one run's output folder (``reconstruct`` / ``grow`` with ``--report``).
+"""``report.html`` for one run (``reconstruct`` / ``grow`` / ``cloud`` with ``--report``).
 
 Reads what the run wrote — ``preview.png``, ``metrics.json`` (with its stage ``timings``),
-``tree.glb`` — and lays it out: the pictures, the metrics, the seconds per stage, and the
-tree in the 3D viewer (the same vendored three.js viewer as the evaluation's page; opens
-offline from the file system).
+``tree.glb`` — or what the caller hands over (the metrics, a GLB elsewhere, pictures) and
+lays it out: the pictures, the metrics, the seconds per stage, and the model in the 3D
+viewer (the same vendored three.js viewer as the evaluation's page; opens offline from the
+file system).
 """
 
 from __future__ import annotations
@@ -37,19 +38,25 @@ def _flat(d: dict, prefix: str = "") -> list:
     return rows
 
 
-def write_run_report(out_dir, *, title: str, pictures=(), progress=None) -> Path:
+def write_run_report(out_dir, *, title: str, pictures=(), progress=None, metrics: dict | None = None,
+                     glb=None) -> Path:
     """Write ``out_dir/report.html`` for the outputs of a finished run.
 
     Parameters
     ----------
     out_dir : path
-        The run's output folder (``metrics.json`` must exist; ``preview.png`` and ``tree.glb``
-        are shown when present).
+        The run's output folder (``metrics.json`` must exist unless ``metrics`` is given;
+        ``preview.png`` and ``tree.glb`` are shown when present).
     title : str
     pictures : sequence of (caption, ndarray (H, W, 3 or 4) uint8)
         Extra pictures (e.g. the predicted RBV), saved beside the page as ``report_N.png``.
     progress : callable, optional
         ``progress(stage, event, seconds)`` for the stage ``report``.
+    metrics : dict, optional
+        The run's metrics (with their stage ``timings``), instead of ``out_dir/metrics.json``.
+    glb : path, optional
+        The model for the 3D viewer, instead of ``out_dir/tree.glb``; it may lie elsewhere:
+        its bytes go into ``out_dir`` as ``NAME.glb.js``.
 
     Returns
     -------
@@ -61,10 +68,15 @@ def write_run_report(out_dir, *, title: str, pictures=(), progress=None) -> Path
     from treeform.report.eval_page import _CSS, ASSETS, _glb_script
 
     out_dir = Path(out_dir)
-    try:
-        metrics = json.loads((out_dir / "metrics.json").read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{out_dir}: no readable metrics.json for the report ({exc})") from None
+    source = "metrics.json" if metrics is None else None
+    if metrics is None:
+        try:
+            metrics = json.loads((out_dir / "metrics.json").read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{out_dir}: no readable metrics.json for the report ({exc})") from None
+    glb = out_dir / "tree.glb" if glb is None else Path(glb)
+    if not glb.is_file() and glb != out_dir / "tree.glb":
+        raise InputError(f"{glb}: no such GLB for the report")
     timer = StageTimer(progress)
     with timer.stage("report"):
         pics = []
@@ -79,15 +91,14 @@ def write_run_report(out_dir, *, title: str, pictures=(), progress=None) -> Path
              f"<h1>{html.escape(title)}</h1>"]
         for caption, name in pics:
             h.append(f"<h2>{html.escape(caption)}</h2><img src='{name}' style='max-width:100%'>")
-        glb = out_dir / "tree.glb"
         if glb.exists():
             assets = out_dir / "assets"
             assets.mkdir(exist_ok=True)
             for name in ("three-modules.js", "viewer.js", "THREE_LICENSE"):
                 shutil.copyfile(ASSETS / name, assets / name)
-            item = [{"key": "tree", "src": _glb_script(glb, "tree"), "label": "tree.glb"}]
+            item = [{"key": "tree", "src": _glb_script(glb, "tree", out_dir), "label": glb.name}]
             h.append("<h2>3D</h2><p id='tf-viewer-title' class='note'>loading…</p><canvas id='tf-viewer'></canvas>")
-        h.append("<h2>Metrics (metrics.json)</h2><table id='metrics'>")
+        h.append(f"<h2>Metrics{f' ({source})' if source else ''}</h2><table id='metrics'>")
         h.extend(f"<tr><td class='l'>{html.escape(k)}</td><td data-key='{html.escape(k)}'>{html.escape(v)}</td></tr>"
                  for k, v in _flat(metrics))
         h.append("</table>")

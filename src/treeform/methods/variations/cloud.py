@@ -14,7 +14,11 @@ picture (or a photo, made into one by :func:`~treeform.methods.variations.pipeli
    turntable strip (front, 30°, 60°, 90°);
 7. **export** — ``cloud.glb``, the ``cloud.json`` sidecar (the compact description of §6:
    source picture, crown/trunk segmentation, superpixel contours, billboard positions) and
-   the strip, all or nothing.
+   the strip, all or nothing;
+8. **report** (only when asked) — a folder with ``report.html``: the input, the picture's
+   alpha and crown/trunk split, the strip, the metrics, the seconds per stage and the cloud
+   in the 3D viewer (:func:`write_cloud_report`, through
+   :func:`treeform.report.write_run_report`).
 """
 
 from __future__ import annotations
@@ -38,12 +42,12 @@ from treeform.geometry.billboard_cloud import (
     replace_straight_edges,
     superpixels,
 )
-from treeform.io.outputs import check_out_file
+from treeform.io.outputs import check_out_dir, check_out_file
 from treeform.methods.variations.config import CloudConfig
 from treeform.io import read_rgba
 from treeform.methods.variations.exemplar import CROWN, TRUNK, file_hash, normalize_rgba, split_crown_trunk
 
-__all__ = ["Cloud", "cloud", "front_quality", "turntable", "cloud_sidecar", "CLOUD_STAGES"]
+__all__ = ["Cloud", "cloud", "front_quality", "turntable", "cloud_sidecar", "write_cloud_report", "CLOUD_STAGES"]
 
 CLOUD_STAGES = ("load", "superpixels", "edges", "placement", "mesh", "render", "export")
 
@@ -119,8 +123,8 @@ def _load(image, cfg: CloudConfig) -> tuple[np.ndarray, dict]:
     return billboard(path, seed=cfg.seed, segmenter=cfg.segmenter).rgba, {**source, "kind": "photo"}
 
 
-def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: CloudConfig | None = None,
-          progress: ProgressCallback | None = None, **options) -> Cloud:
+def cloud(image, *, out=None, views=None, report=None, evaluate: bool | None = None,
+          config: CloudConfig | None = None, progress: ProgressCallback | None = None, **options) -> Cloud:
     """Billboard cloud of a tree picture (seed 000 §6).
 
     Parameters
@@ -133,12 +137,16 @@ def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: 
         The ``.glb`` to write; the JSON sidecar goes beside it with the suffix ``.json``.
     views : path-like, optional
         A PNG of the picture and the views at ``config.views`` degrees (turntable strip).
+    report : path-like, optional
+        A folder for ``report.html`` (:func:`write_cloud_report`), written after the other
+        outputs, whole or not at all; ``treeform cloud --report`` uses ``<out stem>_report``.
     evaluate : bool, optional
         Render the front view and measure it against the picture (default: when ``views``
-        is given).
+        or ``report`` is given).
     config : CloudConfig, optional
     progress : callable, optional
-        ``progress(stage, event, seconds)``; stages :data:`CLOUD_STAGES`.
+        ``progress(stage, event, seconds)``; stages :data:`CLOUD_STAGES`, then ``report``
+        when ``report`` is given.
     **options
         Overrides of config fields, e.g. ``segments=128, seed=3``.
 
@@ -150,7 +158,7 @@ def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: 
     ------
     InputError
         Unreadable image, bad option, bad output name (``out`` must end in ``.glb``,
-        ``views`` in ``.png``).
+        ``views`` in ``.png``, ``report`` not a file).
     NoTreeFoundError
         The picture has (almost) no crown pixels.
     OutputError
@@ -159,7 +167,8 @@ def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: 
     cfg = CloudConfig.from_dict({**(config.to_dict() if config else {}), **options})
     glb_path = check_out_file(out, "-o", suffix=".glb") if out is not None else None
     strip_path = check_out_file(views, "--views") if views is not None else None
-    evaluate = strip_path is not None if evaluate is None else bool(evaluate)
+    report_dir = check_out_dir(report, "--report") if report is not None else None
+    evaluate = (strip_path is not None or report_dir is not None) if evaluate is None else bool(evaluate)
     timer = StageTimer(progress)
     with timer.stage("load"):
         rgba, source = _load(image, cfg)
@@ -210,6 +219,9 @@ def cloud(image, *, out=None, views=None, evaluate: bool | None = None, config: 
     with timer.stage("export"):
         res.files = _write(res, glb_path, strip_path)
     res.metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
+    if report_dir is not None:
+        with timer.stage("report"):
+            res.files["report"] = write_cloud_report(res, report_dir, glb=glb_path, image=image)
     return res
 
 
@@ -245,6 +257,102 @@ def _write(res: Cloud, glb_path: Path | None, strip_path: Path | None) -> dict:
         for (_, _, writer), tmp in zip(jobs, temps):
             writer(tmp)
     return {name: path for name, path, _ in jobs}
+
+
+# --------------------------------------------------------------------------- report
+
+
+def write_cloud_report(res: Cloud, folder, *, glb=None, image=None, title: str | None = None) -> Path:
+    """``folder/report.html`` for a billboard cloud, whole or not at all.
+
+    The page (:func:`treeform.report.write_run_report`) shows the input, the normalised
+    picture's alpha beside its crown / trunk split, the turntable strip when one was made,
+    ``res.metrics`` with their stage timings and, when ``glb`` is given, the cloud in the 3D
+    viewer (its bytes copied into the folder as ``NAME.glb.js``, so the page opens offline).
+    Everything is written into a temporary folder beside ``folder`` and then moved in.
+
+    Parameters
+    ----------
+    res : Cloud
+    folder : path-like
+        Made if missing; files of an earlier report there are replaced.
+    glb : path-like, optional
+        The cloud's GLB, as written.
+    image : path-like or ndarray, optional
+        The input given to :func:`cloud`, shown first.
+    title : str, optional
+        Default: ``treeform cloud: <input file name>``.
+
+    Returns
+    -------
+    Path
+        The page.
+
+    Raises
+    ------
+    OutputError
+        The folder cannot be written (then nothing of the report is left).
+    """
+    import os
+    import shutil
+    import tempfile
+
+    from treeform._shared.errors import OutputError
+    from treeform.io._atomic import _UMASK
+    from treeform.report import compose_strip, over_checkerboard, segmentation_overlay, write_run_report
+    from treeform.structures import Segmentation
+
+    folder = Path(folder)
+    name = res.sidecar["source"].get("file") or "picture"
+    title = title or f"treeform cloud: {name}"
+    photo = res.sidecar["source"].get("kind") == "photo"
+    pictures = []
+    if image is not None:
+        shown = np.asarray(image) if isinstance(image, np.ndarray) else read_rgba(Path(image), require_alpha=False)
+        pictures.append((f"input: {name} ({'photo' if photo else 'RGBA picture'})", _input_tile(shown)))
+    board = over_checkerboard(res.picture)
+    pictures.append((("billboard made of the photo (alpha matting)" if photo else "the picture") +
+                     ": alpha over a checkerboard | crown (green) and trunk (red)",
+                     compose_strip([board, segmentation_overlay(board, Segmentation(res.labels))],
+                                   labels=["alpha", "crown / trunk"], height=512)))
+    if res.strip is not None:
+        angles = ["front" if float(a) == 0 else f"{float(a):g}°" for a in res.sidecar["config"]["views"]]
+        pictures.append(("views: " + " | ".join(["picture", *angles]), res.strip))
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=folder.parent))
+    except OSError as exc:
+        raise OutputError(f"--report {folder}: cannot write ({exc.strerror or exc})") from None
+    try:
+        os.chmod(stage, 0o777 & ~_UMASK)
+        write_run_report(stage, title=title, pictures=pictures, metrics=res.metrics, glb=glb)
+        if not folder.exists():
+            os.replace(stage, folder)
+        else:  # an earlier report: its files replaced one by one
+            for f in sorted(p for p in stage.rglob("*") if p.is_file()):
+                dest = folder / f.relative_to(stage)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(f, dest)
+    except OSError as exc:
+        raise OutputError(f"--report {folder}: write failed ({exc.strerror or exc})") from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return folder / "report.html"
+
+
+def _input_tile(img, side: int = 1024) -> np.ndarray:
+    """The input as an RGB picture at most ``side`` pixels wide and high; transparency over a checkerboard."""
+    import cv2
+
+    from treeform.report import over_checkerboard
+
+    img = np.asarray(img, np.uint8)
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3] if (img[..., 3] == 255).all() else over_checkerboard(img)
+    scale = side / max(img.shape[:2])
+    if scale < 1:
+        img = cv2.resize(img, (max(1, round(img.shape[1] * scale)), max(1, round(img.shape[0] * scale))),
+                         interpolation=cv2.INTER_AREA)
+    return img
 
 
 # --------------------------------------------------------------------------- renders
