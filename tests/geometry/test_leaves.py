@@ -199,3 +199,21 @@ def test_cards_match_the_numpy_reference(seed):
     part = leaf_cards(f.with_colors(f.color, uv=uv))
     assert np.array_equal(part.uvs.reshape(-1, 4, 2)[:, 0], uv[:, [0, 3]])
     assert np.array_equal(part.uvs.reshape(-1, 4, 2)[:, 2], uv[:, [2, 1]])
+
+
+def test_bezier_outline_leaves():
+    from treeform._shared.errors import InputError
+    from treeform.geometry import leaf_texture, texture_coverage
+
+    a = leaf_texture(64, seed=3, outline="bezier")
+    assert np.array_equal(a, leaf_texture(64, seed=3, outline="bezier"))
+    assert not np.array_equal(a[..., 3], leaf_texture(64, seed=3)[..., 3])  # other margins
+    assert 0.6 <= texture_coverage(a) <= 0.7
+    one = leaf_texture(64, seed=1, kind="leaf", outline="bezier")[..., 3] > 127
+    cols = one.any(0)
+    # one blade: symmetric about the midrib column, widest away from base and tip
+    assert abs(np.flatnonzero(cols).mean() - 31.5) < 1.5
+    widths = one.sum(1)
+    assert widths.argmax() not in (0, 63) and widths.max() > 10
+    with pytest.raises(InputError):
+        leaf_texture(64, outline="spline")

@@ -1,6 +1,7 @@
 """Skeleton and foliage to triangle meshes: generalized-cylinder branches, leaf cards, LODs.
 
 - :func:`branch_mesh` — one smooth tube per branch chain (parallel-transport frames).
+- :func:`bspline_skeleton` — a coarse skeleton's branches as clamped cubic B-splines, resampled (seed 004 §4).
 - :func:`leaf_cards`, :func:`leaf_texture` — alpha-masked leaf quads and their texture.
 - :func:`tree_mesh`, :data:`LOD_PRESETS` — both parts under a triangle budget; :func:`foliage_budget` —
   how many (and how large) leaf clusters a budget keeps, to generate only those.
@@ -9,6 +10,7 @@
 - :mod:`treeform.geometry.billboard_cloud` — superpixel billboards, atlas, placement, cloud mesh (seed 000 §6).
 """
 
+from treeform.geometry.curves import bspline_skeleton
 from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage
 from treeform.geometry.lod import LOD_PRESETS, foliage_budget, plan_lod, tree_mesh
 from treeform.geometry.normal_maps import normal_map_from_height, texture_height
@@ -23,6 +25,7 @@ __all__ = [
     "bark_material",
     "bark_texture",
     "branch_mesh",
+    "bspline_skeleton",
     "foliage_budget",
     "foliage_coverage",
     "leaf_cards",

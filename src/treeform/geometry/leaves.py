@@ -94,6 +94,21 @@ def _profile(x: np.ndarray, p: float) -> np.ndarray:
     return xc**p * (1.0 - xc) ** q / (xm**p * (1.0 - xm) ** q)
 
 
+def _bezier_profile(x: np.ndarray, ctrl) -> np.ndarray:
+    """Leaf half-width along the blade from a cubic Bézier outline (seed 004 §4), max 1.
+
+    The margin runs from the base ``(0, 0)`` over the control points ``(a1, b1)``, ``(a2, b2)``
+    to the tip ``(1, 0)`` (``0 <= a1 <= a2 <= 1``, so the curve is a function of x); the other
+    margin is its mirror image across the midrib.
+    """
+    a1, b1, a2, b2 = ctrl
+    t = np.linspace(0.0, 1.0, 97)
+    mt = 1.0 - t
+    bx = 3 * mt * mt * t * a1 + 3 * mt * t * t * a2 + t**3
+    by = 3 * mt * mt * t * b1 + 3 * mt * t * t * b2
+    return np.interp(np.clip(x, 0.0, 1.0), bx, by / by.max())
+
+
 def _render(layout: dict, res: int, width_scale: float, *, shade: bool, texel: float = 0.0):
     """Rasterize the layout at ``res``²; returns (alpha (res, res) float, rgb (res, res, 3) or None).
 
@@ -122,7 +137,7 @@ def _render(layout: dict, res: int, width_scale: float, *, shade: bool, texel: f
         gx, gy = np.meshgrid(xs - b[0], ys - b[1])
         u = (gx * d[0] + gy * d[1]) / L  # along the blade, 0 base .. 1 tip
         v = (gx * nrm[0] + gy * nrm[1]) / L  # across, in leaf lengths
-        hw = w * _profile(u, layout["tip_p"][i])
+        hw = w * (_bezier_profile(u, layout["bezier"][i]) if "bezier" in layout else _profile(u, layout["tip_p"][i]))
         inside = (u > 0) & (u < 1) & (np.abs(v) < hw)
         win = alpha[lo[1]:hi[1], lo[0]:hi[0]]
         if not shade:
@@ -159,7 +174,11 @@ def _stroke(alpha, rgb, p0, p1, half_width, res):
         rgb[lo[1]:hi[1], lo[0]:hi[0]][m] = _STEM_RGB
 
 
-def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster") -> np.ndarray:
+OUTLINES = ("profile", "bezier")
+"""Blade outlines of :func:`leaf_texture`: a power-law profile, or cubic Bézier margins (seed 004 §4)."""
+
+
+def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster", outline: str = "profile") -> np.ndarray:
     """A procedural leaf texture with an alpha mask, for alpha-tested leaf cards.
 
     ``kind="cluster"``: 14-18 ovate, pointed leaf blades on short petioles radiating from a
@@ -182,6 +201,10 @@ def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster"
     seed : int or numpy.random.Generator
         Randomness; same seed -> identical texture.
     kind : {"cluster", "leaf", "needles", "scales"}
+    outline : {"profile", "bezier"}
+        Broadleaf blade margins: an ovate power-law profile, or two mirrored cubic Bézier
+        curves from base to tip with random control points per blade (ovate, elliptic,
+        obovate and lanceolate blades; seed 004 §4's Bézier leaves).
 
     Returns
     -------
@@ -197,6 +220,7 @@ def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster"
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 8:
         raise InputError(f"size: expected an integer >= 8, got {size!r}")
     check_choice(kind, "kind", TEXTURE_KINDS)
+    check_choice(outline, "outline", OUTLINES)
     size = int(size)
     if kind in ("needles", "scales"):
         from treeform.geometry.needles import conifer_texture
@@ -204,6 +228,10 @@ def leaf_texture(size: int = LEAF_TEXTURE_SIZE, *, seed=0, kind: str = "cluster"
         return conifer_texture(size, seed=seed, kind=kind)
     rng = as_rng(seed)
     layout = _layout(rng, kind)
+    if outline == "bezier":  # drawn after the layout: the profile textures stay as they were
+        n = len(layout["length"])
+        layout["bezier"] = np.column_stack([rng.uniform(0.0, 0.35, n), rng.uniform(0.45, 1.0, n),
+                                            rng.uniform(0.45, 0.85, n), rng.uniform(0.35, 0.9, n)])
     scale = 1.0
     if kind == "cluster":  # bisect the blade width for the target coverage (a cheap 1x mask)
         res = 96

@@ -121,6 +121,35 @@ class TreeSkeleton:
             chains.append(np.array(chain, dtype=np.int64))
         return chains
 
+    def prune(self, keep) -> tuple["TreeSkeleton", np.ndarray]:
+        """The nodes selected by ``keep`` whose ancestors are all selected (a dropped node takes
+        its subtree with it); the root always stays.
+
+        Returns
+        -------
+        (TreeSkeleton, ndarray (N,) int64)
+            The pruned skeleton and each old node's new index (-1 where dropped).
+
+        Examples
+        --------
+        >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0.]]), np.array([-1, 0, 1, 1]))
+        >>> t, new = s.prune([True, True, False, True])
+        >>> t.n_nodes, new.tolist(), t.parent.tolist()
+        (3, [0, 1, -1, 2], [-1, 0, 1])
+        """
+        keep = np.asarray(keep, bool).reshape(-1).copy()
+        if len(keep) != self.n_nodes:
+            raise InputError(f"TreeSkeleton.prune: keep has {len(keep)} entries for {self.n_nodes} nodes")
+        keep[0] = True
+        for i in range(1, self.n_nodes):  # parents come first: one forward sweep closes the set
+            keep[i] = keep[i] and keep[self.parent[i]]
+        new = np.full(self.n_nodes, -1, np.int64)
+        idx = np.flatnonzero(keep)
+        new[idx] = np.arange(len(idx))
+        parent = np.where(self.parent[idx] >= 0, new[np.maximum(self.parent[idx], 0)], -1)
+        return TreeSkeleton(self.positions[idx], parent, self.radius[idx], self.order[idx], self.age[idx],
+                            dict(self.meta)), new
+
     # ------------------------------------------------------------------ io
     def to_dict(self) -> dict:
         """A JSON-ready dict; floats rounded to 1e-6 m so output is byte-stable."""
