@@ -1,7 +1,8 @@
 """Quality on real photos: reconstruct every photo of ../shared/data/photos with a given isolation
 rating and report reprojection error, IoU, depth/width, front SSIM and colour distance. Writes out/eval/<name>/ and a summary.
 
-Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--segmenter learned] [--out out/eval]`
+Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--method envelope|learned|abs]
+[--segmenter learned] [--candidates N] [--out out/eval]`
 """
 
 from __future__ import annotations
@@ -17,15 +18,21 @@ PHOTOS = ROOT.parent / "shared" / "data" / "photos"
 
 
 def main():
+    import importlib
+
     from treeform._shared.errors import TreeformError
-    from treeform.methods.envelope.pipeline import reconstruct
+    from treeform.methods import METHODS
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--rating", default="isolated")
     ap.add_argument("--out", default=str(ROOT / "out" / "eval"))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--segmenter", default=None, help="classical | learned (default: the method's)")
+    ap.add_argument("--method", default="envelope", help="a single-photo method of the registry")
+    ap.add_argument("--candidates", type=int, default=None, help="abs: models tested per photo")
     args = ap.parse_args()
+    module, func = METHODS[args.method][2].split(":")
+    reconstruct = getattr(importlib.import_module(module), func)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with open(PHOTOS / "ATTRIBUTION.csv") as f:
@@ -35,6 +42,8 @@ def main():
         stem = Path(name).stem
         try:
             opts = {"segmenter": args.segmenter} if args.segmenter else {}
+            if args.candidates is not None:
+                opts["candidates"] = args.candidates
             res = reconstruct(PHOTOS / name, out=out / stem, seed=args.seed, **opts)
         except TreeformError as exc:
             rows[stem] = {"error": str(exc)}
@@ -43,13 +52,17 @@ def main():
         m = res.metrics
         rows[stem] = {k: m[k] for k in ("reprojection_error", "iou", "depth_width_ratio", "front_ssim",
                                         "front_color_distance", "stems_at_5_percent", "total_seconds")}
+        for k in ("search_error_first", "search_error_best", "n_branches"):  # abs: the search's gain
+            if k in m:
+                rows[stem][k] = m[k]
         print(f"{stem:32s} err {100 * m['reprojection_error']:5.1f} %  IoU {m['iou']:.3f}  "
               f"depth/width {m['depth_width_ratio']:.2f}  SSIM {m['front_ssim']:.3f}  "
               f"colour {m['front_color_distance']:.3f}  stems {m['stems_at_5_percent']}  {m['total_seconds']:.2f} s")
     ok = [r for r in rows.values() if "error" not in r]
     errs = [r["reprojection_error"] for r in ok]
     dws = [r["depth_width_ratio"] for r in ok]
-    summary = {"rating": args.rating, "n": len(rows), "failed": len(rows) - len(ok),
+    summary = {"method": args.method, "rating": args.rating, "n": len(rows), "failed": len(rows) - len(ok),
+               "median_total_seconds": statistics.median(r["total_seconds"] for r in ok) if ok else None,
                "median_reprojection_error": statistics.median(errs) if errs else None,
                "worst_reprojection_error": max(errs) if errs else None,
                "median_iou": statistics.median(r["iou"] for r in ok) if ok else None,
@@ -58,7 +71,10 @@ def main():
                "median_front_color_distance": statistics.median(r["front_color_distance"] for r in ok) if ok else None,
                "depth_width_min": min(dws) if dws else None, "depth_width_max": max(dws) if dws else None,
                "per_photo": rows}
-    (out / f"summary_{args.rating}.json").write_text(json.dumps(summary, indent=1))
+    if ok and "search_error_first" in ok[0]:
+        summary["median_search_error_first"] = statistics.median(r["search_error_first"] for r in ok)
+        summary["median_search_error_best"] = statistics.median(r["search_error_best"] for r in ok)
+    (out / f"summary_{args.method}_{args.rating}.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps({k: v for k, v in summary.items() if k != "per_photo"}, indent=1))
 
 

@@ -27,7 +27,10 @@ def bench_reconstruct(repeat, method: str = "envelope"):
     """Median seconds of one method's reconstruct of the sample (warm), per-stage medians and the last metrics."""
     import importlib
 
-    reconstruct = importlib.import_module(f"treeform.methods.{method}.pipeline").reconstruct
+    from treeform.methods import METHODS
+
+    module, func = METHODS[method][2].split(":")
+    reconstruct = getattr(importlib.import_module(module), func)
     stages = {}
     out = Path(tempfile.mkdtemp(prefix=f"treeform-bench-{method}-"))
     reconstruct(SAMPLE, out=out / "warm")  # warm-up: imports, GL context, onnxruntime sessions
@@ -63,6 +66,21 @@ def bench_space_colonization(repeat):
     t_sample, _ = median_time(lambda: blue_noise_points(inside, ([-3, 3.5, -3], [3, 8.5, 3]), 10_000, seed=0), repeat)
     return t, t_sample, len(run().positions)
 
+def bench_lsystem(repeat):
+    """Medians of the L-system (seed 004 §4): a whole pine, a dressed 3-branch skeleton, B-spline smoothing."""
+    from treeform.geometry import bspline_skeleton
+    from treeform.growth.lsystem import dress_skeleton, lsystem_tree
+
+    t_tree, _ = median_time(lambda: lsystem_tree("pine", seed=0), repeat)
+    tree = lsystem_tree("pine", seed=0)
+    trunk = np.stack([np.zeros(9), np.linspace(0, 8, 9), np.zeros(9)], 1)
+    arms = [np.array([[0, 4, 0], [sx * 1.5, 5, sz], [sx * 3, 6, 2 * sz]]) for sx, sz in ((-1, 0.5), (1, -0.5), (0.3, 1))]
+    radius = [np.r_[np.zeros(3), np.full(6, 1.5)]] + [np.array([1.2, 1.5, 1.0])] * 3
+    dress = lambda: dress_skeleton([trunk] + arms, radius, preset="oak", seed=0, defines={"density": 6.0})  # noqa: E731
+    t_dress, _ = median_time(dress, repeat)
+    dressed = dress()
+    t_spline, _ = median_time(lambda: bspline_skeleton(tree.skeleton, samples_per_segment=2), repeat)
+    return (t_tree, tree.skeleton.n_nodes, tree.modules), (t_dress, len(dressed.foliage)), (t_spline, tree.skeleton.n_nodes)
 
 
 def main():
@@ -78,6 +96,15 @@ def main():
     rows.append(("reconstruct --method learned, 450x600 photo, in-process (median)", total_l))
     for k, v in stages_l.items():
         rows.append((f"  stage {k}" + (" (inside grow)" if k in ("leaves", "mesh") else ""), v))
+    total_a, stages_a, metrics_a = bench_reconstruct(args.repeat, "abs")
+    rows.append((f"reconstruct --method abs ({len(metrics_a['candidates'])} candidates), 450x600 photo, "
+                 "in-process (median)", total_a))
+    for k, v in stages_a.items():
+        rows.append((f"  stage {k}", v))
+    (t_ls, ls_nodes, ls_modules), (t_dr, dr_leaves), (t_bs, bs_nodes) = bench_lsystem(args.repeat)
+    rows.append((f"L-system: whole pine ({ls_modules} modules, {ls_nodes} nodes)", t_ls))
+    rows.append((f"L-system: dress a 4-branch skeleton, oak, density 6 ({dr_leaves} leaves)", t_dr))
+    rows.append((f"B-spline skeleton, {bs_nodes} nodes, 2 samples per segment", t_bs))
     t_sc, t_bn, nodes = bench_space_colonization(args.repeat)
     rows.append((f"space colonization, 10,000 attractors ({nodes} nodes)", t_sc))
     rows.append(("blue-noise sampling, 10,000 attractors", t_bn))
@@ -92,6 +119,9 @@ def main():
           f"triangles {metrics['triangles']}")
     print(f"learned: reprojection error {100 * metrics_l['reprojection_error']:.1f} %, IoU {metrics_l['iou']:.3f}, "
           f"species {metrics_l['species']}, triangles {metrics_l['triangles']}")
+    print(f"abs: reprojection error {100 * metrics_a['reprojection_error']:.1f} % (first model "
+          f"{100 * metrics_a['search_error_first']:.1f} %, best {100 * metrics_a['search_error_best']:.1f} % at the "
+          f"search size), species {metrics_a['species']}, triangles {metrics_a['triangles']}")
     (ROOT / "benchmarks" / "results.json").write_text(json.dumps(
         {"machine": machine(), "command": "make bench", "repeat": args.repeat,
          "results": {name.strip(): round(t, 4) for name, t in rows}}, indent=1))

@@ -111,7 +111,7 @@ def run_api(func, *args, stages=None, display=None, inputs=(), **kwargs):
 LeafTexture = _choices("LeafTexture", "photo", "procedural")
 Profile = _choices("Profile", "rounded", "thin-plate")
 Colonization = _choices("Colonization", "coarse", "paper")
-Method = _choices("Method", "envelope", "learned")
+Method = _choices("Method", "envelope", "learned", "abs")
 
 
 @app.command()
@@ -119,18 +119,24 @@ def reconstruct(
     photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
     method: Method = typer.Option(Method.envelope, "--method",
                                   help="'envelope': crown envelope + radial distance map + space colonization "
-                                       "(Argudo et al. 2016); 'learned': networks + bi-modal growth (Li et al. 2021)."),
+                                       "(Argudo et al. 2016); 'learned': networks + bi-modal growth (Li et al. 2021); "
+                                       "'abs': analysis by synthesis, foliage skeleton + L-system, best of N "
+                                       "(Guénard et al. 2013)."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output directory."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     species: Optional[str] = typer.Option(None, "--species",
-                                          help="learned: grow this species instead of the predicted one."),
+                                          help="learned, abs: grow this species instead of the predicted one."),
+    candidates: Optional[int] = typer.Option(None, "--candidates", min=1, max=10000,
+                                             help="abs: models generated and scored by reprojection (default 24)."),
     crown: Crown = typer.Option(Crown.round, "--crown", help="envelope: crown envelope shape."),
     leaves: Optional[int] = typer.Option(None, "--leaves",
-                                         help="Number of leaf clusters (envelope default 8000; learned: per twig)."),
+                                         help="Number of leaf clusters (envelope default 8000; learned: per twig; "
+                                              "abs: a cap on what the L-system grows)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
     height: Optional[float] = typer.Option(None, "--height",
-                                           help="Tree height in metres (envelope default 10; learned: the species')."),
+                                           help="Tree height in metres (envelope and abs default 10; learned: the "
+                                                "species')."),
     segmenter: Optional[SegmenterName] = typer.Option(
         None, "--segmenter", help="Tree segmentation: 'classical' or 'learned' (default: envelope classical, "
                                   "learned learned)."),
@@ -163,8 +169,24 @@ def reconstruct(
 
     envelope_only = {"--leaf-texture": leaf_texture, "--profile": profile, "--k": k, "--depth-ratio": depth_ratio,
                      "--rdm-rotations": rdm_rotations, "--colonization": colonization}
-    if method is Method.learned:
-        given = [name for name, v in envelope_only.items() if v is not None]
+    given = [name for name, v in envelope_only.items() if v is not None]
+    if candidates is not None and method is not Method.abs:
+        typer.echo("error: --candidates works with --method abs", err=True)
+        raise typer.Exit(2)
+    if method is Method.abs:
+        not_abs = given + (["--foliage"] if foliage is not FoliageKind.auto else [])
+        if not_abs:
+            typer.echo(f"error: {', '.join(not_abs)}: not an option of --method abs", err=True)
+            raise typer.Exit(2)
+        from treeform.methods.synthesis.pipeline import STAGES
+        from treeform.methods.synthesis.pipeline import reconstruct as api
+
+        res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
+                      inputs=(photo, ("--mask", mask)), candidates=24 if candidates is None else candidates,
+                      tree_height=10.0 if height is None else height,
+                      segmenter=(segmenter or SegmenterName.classical).value, stages=STAGES,
+                      texture_size=texture_size)
+    elif method is Method.learned:
         if given:
             typer.echo(f"error: {', '.join(given)} work{'s' if len(given) == 1 else ''} with --method envelope",
                        err=True)
@@ -180,7 +202,7 @@ def reconstruct(
         from treeform.methods.envelope.pipeline import reconstruct as api
 
         if species is not None:
-            typer.echo("error: --species works with --method learned", err=True)
+            typer.echo("error: --species works with --method learned or abs", err=True)
             raise typer.Exit(2)
         from treeform.methods.envelope.config import COLONIZATION_PRESETS
 

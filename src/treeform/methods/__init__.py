@@ -16,6 +16,12 @@ METHODS = {
         "Li et al., Learning to reconstruct botanical trees from single images, ACM TOG 40(6) (2021)",
         "treeform.methods.learned.pipeline:reconstruct",
     ),
+    "abs": (
+        "Single photo -> 3D tree by analysis by synthesis: foliage skeletonisation (force field, DCE "
+        "cuts), an L-system generative model, the best of N candidates by reprojection error",
+        "Guénard et al., Reconstructing plants in 3D from a single image using analysis-by-synthesis, ISVC (2013)",
+        "treeform.methods.synthesis.pipeline:reconstruct",
+    ),
     "variations": (
         "New RGBA tree images from a library of RGBA trees (contour synthesis + mean value coordinates); "
         "photo -> RGBA billboard by alpha matting; picture -> billboard cloud (alpha-tested GLB)",

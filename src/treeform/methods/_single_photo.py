@@ -171,3 +171,40 @@ def photo_metrics(renders: dict, photo_camera: Camera, image: np.ndarray, tree_m
         "front_ssim": round(ssim(shown, image, tree), 4) if has_tree else 0.0,
         "front_color_distance": round(color_distance(shown, image, tree), 4) if has_tree else 1.0,
     }
+
+
+def load_and_segment(photo, mask, *, max_size: int, segmenter: str, seed: int, timer):
+    """The "load" and "segment" stages every single-photo method starts with.
+
+    Returns
+    -------
+    (Photo, Segmentation, TreeLayout)
+        The photo reduced to ``max_size``, its segmentation (or the user's mask) and the tree's
+        layout (:func:`treeform.crown.layout.tree_layout`).
+    """
+    with timer.stage("load"):
+        ph, user_mask = load_photo(photo, mask, max_size=max_size)
+    with timer.stage("segment"):
+        from treeform.crown.layout import tree_layout
+
+        seg = segment_or_mask(ph.image, user_mask, segmenter=segmenter, seed=seed)
+        layout = tree_layout(seg)
+    return ph, seg, layout
+
+
+def model_metrics(skeleton, foliage, mesh, *, photo_size, metres_per_pixel: float) -> dict:
+    """The model's size and shape figures every single-photo method reports in metrics.json."""
+    from treeform.metrics.treeform_metrics import crown_extents, stems_at, tree_height
+
+    return {
+        "nodes": skeleton.n_nodes,
+        "tips": int(len(skeleton.tips())),
+        "leaves": len(foliage),
+        "vertices": mesh.n_vertices,
+        "triangles": mesh.n_triangles,
+        "photo_size": [int(v) for v in photo_size],
+        "metres_per_pixel": metres_per_pixel,
+        "tree_height_m": tree_height(skeleton),
+        "stems_at_5_percent": stems_at(skeleton, fraction=0.05),
+        **crown_extents(skeleton),
+    }

@@ -285,8 +285,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
                          bark_normal=bark_normal, seed=cfg.seed)
     with timer.stage("render"):
-        from treeform.metrics.treeform_metrics import crown_extents, stems_at, tree_height
-        from treeform.methods._single_photo import photo_metrics
+        from treeform.methods._single_photo import model_metrics, photo_metrics
         from treeform.render import Lighting
         from treeform.report import photo_window, preview_strip
 
@@ -298,18 +297,9 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
         metrics = {
             **photo_metrics(renders, cam, image, seg.tree_mask),
-            "nodes": skeleton.n_nodes,
-            "tips": int(len(skeleton.tips())),
-            "leaves": len(foliage),
             "attractors": int(len(attractors)),
             "attractors_left": sc.attractors_left,
-            "vertices": mesh.n_vertices,
-            "triangles": mesh.n_triangles,
-            "photo_size": [width, height],
-            "metres_per_pixel": mpp,
-            "tree_height_m": tree_height(skeleton),
-            "stems_at_5_percent": stems_at(skeleton, fraction=0.05),
-            **crown_extents(skeleton),
+            **model_metrics(skeleton, foliage, mesh, photo_size=(width, height), metres_per_pixel=mpp),
         }
         preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
     result = Reconstruction(ph, seg, cam, world_verts, env.faces, rdm, skeleton, foliage, mesh, metrics, cfg,

@@ -74,21 +74,16 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
     ------
     InputError, NoTreeFoundError, ModelError, OutputError
     """
-    from treeform.methods._single_photo import load_photo, photo_camera, render_previews, segment_or_mask
+    from treeform.methods._single_photo import load_and_segment, model_metrics, photo_camera, render_previews
 
     cfg = LearnedConfig.from_dict({**(config.to_dict() if config else {}), **options})
     out_dir = check_out_dir(out) if out is not None else None
     timer = StageTimer(progress)
 
-    with timer.stage("load"):
-        ph, user_mask = load_photo(photo, mask, max_size=cfg.max_size)
-        image = ph.image
-        height_px, width_px = ph.shape
-    with timer.stage("segment"):
-        from treeform.crown.layout import tree_layout
-
-        seg = segment_or_mask(image, user_mask, segmenter=cfg.segmenter, seed=cfg.seed)
-        layout = tree_layout(seg)
+    ph, seg, layout = load_and_segment(photo, mask, max_size=cfg.max_size, segmenter=cfg.segmenter, seed=cfg.seed,
+                                       timer=timer)
+    image = ph.image
+    height_px, width_px = ph.shape
     with timer.stage("species"):
         from treeform.learn.infer import predict_species
 
@@ -117,7 +112,6 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
     for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage
         timer.timings[k] = grown.metrics["timings"].get(k, 0.0)
     with timer.stage("render"):
-        from treeform.metrics.treeform_metrics import crown_extents, tree_height
         from treeform.methods._single_photo import photo_metrics
         from treeform.methods.learned.grow import preview_lighting
         from treeform.report import photo_window, preview_strip
@@ -132,15 +126,7 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
             "species_probabilities": {k: round(v, 4) for k, v in probs.items()},
             "tree_height": round(tree_h, 4),
             "rbv_level": cfg.rbv_level,
-            "nodes": skeleton.n_nodes,
-            "tips": int(len(skeleton.tips())),
-            "leaves": len(foliage),
-            "vertices": mesh.n_vertices,
-            "triangles": mesh.n_triangles,
-            "photo_size": [width_px, height_px],
-            "metres_per_pixel": mpp,
-            "tree_height_m": tree_height(skeleton),
-            **crown_extents(skeleton),
+            **model_metrics(skeleton, foliage, mesh, photo_size=(width_px, height_px), metres_per_pixel=mpp),
         }
         preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
     result = LearnedReconstruction(ph, seg, species, probs, rbv, cam, skeleton, foliage, mesh, metrics, cfg, renders,

@@ -1,0 +1,142 @@
+"""End-to-end tests of the analysis-by-synthesis method (seed 004) on the bundled sample."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError, NoTreeFoundError, OutputError
+from treeform.io import read_glb_counts
+from treeform.methods import METHODS
+from treeform.methods.synthesis.pipeline import STAGES, reconstruct, skeleton2d
+from treeform.methods.synthesis.search import ERROR_SCALE, best_so_far, prior, propose, score
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+FAST = dict(max_size=320, candidates=5, lod="low", search_size=96, species="oak")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, gl):
+    out = tmp_path_factory.mktemp("abs") / "tree"
+    return reconstruct(SAMPLE, out=out, seed=0, **FAST), out
+
+
+def test_registry_points_at_the_pipeline():
+    assert METHODS["abs"][2] == "treeform.methods.synthesis.pipeline:reconstruct"
+
+
+def test_outputs_exist_and_agree(run):
+    res, out = run
+    names = {p.name for p in out.iterdir()}
+    assert {"tree.glb", "tree.obj", "skeleton.json", "skeleton.ply", "preview.png", "metrics.json", "config.json",
+            "candidates.png", "skeleton2d.png", "skeleton2d.json"} <= names
+    assert read_glb_counts(out / "tree.glb") == (res.mesh.n_vertices, res.mesh.n_triangles)
+    m = json.loads((out / "metrics.json").read_text())
+    assert set(STAGES) <= set(m["timings"])
+    assert json.loads((out / "config.json").read_text())["method"] == "abs"
+    sk = json.loads((out / "skeleton2d.json").read_text())
+    assert len(sk["branches"]) == len(res.skeleton2d.branches) >= 2
+
+
+def test_search_curve_is_the_running_best(run):
+    res, _ = run
+    m = res.metrics
+    errors = [c["error"] for c in m["candidates"]]
+    assert len(errors) == FAST["candidates"] and len({c["index"] for c in m["candidates"]}) == len(errors)
+    curve = m["candidate_curve"]
+    assert len(curve) == len(errors) and all(b <= a for a, b in zip(curve, curve[1:]))
+    assert curve[-1] == pytest.approx(min(errors)) and curve[0] == pytest.approx(errors[0])
+    best = max(m["candidates"], key=lambda c: c["score"])
+    assert m["search_error_best"] == best["error"] and m["n_branches"] == best["n_branches"]
+    # eq. (4): log prior minus the error over its scale
+    for c in m["candidates"]:
+        assert c["score"] == pytest.approx(np.log(c["prior"]) - c["error"] / ERROR_SCALE, abs=1e-4)
+
+
+def test_tree_matches_the_photo_and_is_3d(run):
+    res, _ = run
+    m = res.metrics
+    assert m["reprojection_error"] < 0.25 and m["iou"] > 0.75
+    assert 0.5 < m["depth_width_ratio"] < 1.6
+    sk = res.skeleton
+    assert abs(sk.positions[0, 1]) < 1e-6 and 7.0 < sk.positions[:, 1].max() < 13.0
+    assert np.ptp(sk.positions[:, 2]) > 0.2 * np.ptp(sk.positions[:, 0])  # branches leave the image plane
+    assert len(res.foliage) > 100 and np.all(res.foliage.node < sk.n_nodes)
+
+
+def test_same_seed_same_tree(run):
+    res, _ = run
+    again = reconstruct(SAMPLE, seed=0, **FAST)
+    np.testing.assert_array_equal(again.skeleton.positions, res.skeleton.positions)
+    np.testing.assert_array_equal(again.foliage.positions, res.foliage.positions)
+    assert [c["error"] for c in again.candidates] == [c["error"] for c in res.candidates]
+
+
+def test_proposals_are_distinct_and_follow_the_prior():
+    ps = propose(40, "pine", seed=3)
+    assert len(set(ps)) == 40 and ps[0].n_branches == 8
+    assert propose(40, "pine", seed=3) == ps
+    fixed = propose(10, "oak", n_branches=3, seed=0)
+    assert {p.n_branches for p in fixed} == {3}
+    assert prior(8, "pine") == 1.0 and prior(4, "pine") < prior(6, "pine") < 1.0
+    assert best_so_far([0.3, 0.4, 0.2, 0.25]) == [0.3, 0.3, 0.2, 0.2]
+    # a clearly better fit beats the prior's favourite; a near-tie goes to the prior
+    assert score(0.05, 4, "pine") > score(0.12, 8, "pine")
+    assert score(0.051, 8, "pine") > score(0.05, 5, "pine")
+
+
+def test_build_candidate_fits_leaves_and_wood_to_the_silhouette(gl):
+    import scipy.ndimage as ndi
+
+    from treeform.crown.layout import tree_layout
+    from treeform.methods._single_photo import load_photo, photo_camera, segment_or_mask
+    from treeform.methods.synthesis.pipeline import build_candidate, foliage_reach, row_half_widths
+    from treeform.skeleton import foliage_skeleton
+
+    ph, _ = load_photo(SAMPLE, None, max_size=320)
+    seg = segment_or_mask(ph.image, None, segmenter="classical", seed=0)
+    lay = tree_layout(seg)
+    cam, mpp = photo_camera(ph.shape[1], ph.shape[0], lay, 10.0, 40.0)
+    sk = foliage_skeleton(lay.crown_mask, n_branches=5, trunk=np.asarray(lay.trunk_path, float), seed=0)
+    reach = foliage_reach(sk, lay.crown_mask)
+    p = propose(1, "oak")[0]
+    kw = dict(species="oak", base=lay.base, mpp=mpp, camera=cam, leaf_size=0.4, reach=reach)
+    free_sk, free = build_candidate(sk, p, edge_distance=None, **kw)
+    edge = ndi.distance_transform_edt(seg.tree_mask)
+    bound = row_half_widths(seg.tree_mask)
+    fit_sk, fit = build_candidate(sk, p, edge_distance=edge, depth_bound=bound, **kw)
+    assert 0 < len(fit) < len(free) and fit_sk.n_nodes < free_sk.n_nodes
+
+    def inside(points):
+        uv = np.floor(cam.project(points)[:, :2]).astype(int)
+        return seg.tree_mask[np.clip(uv[:, 1], 0, ph.shape[0] - 1), np.clip(uv[:, 0], 0, ph.shape[1] - 1)]
+
+    assert inside(free.positions).mean() < 0.97 and inside(fit.positions).all()
+    row = np.clip(np.round(lay.base[1] - fit.positions[:, 1] / mpp).astype(int), 0, len(bound) - 1)
+    assert np.all(np.abs(fit.positions[:, 2]) <= bound[row] * mpp + 1e-9)
+    assert fit.size.max() <= free.size.max() and fit.size.min() < 0.7 * free.size.min()  # cards at the outline shrank
+    assert fit.node.max() < fit_sk.n_nodes
+
+
+def test_bad_input(tmp_path, gl):
+    with pytest.raises(InputError, match="candidates"):
+        reconstruct(SAMPLE, candidates=0)
+    with pytest.raises(InputError, match="species"):
+        reconstruct(SAMPLE, species="palm")
+    sky = np.zeros((240, 320, 3), np.uint8) + np.array([120, 170, 230], np.uint8)  # a photo of the sky
+    with pytest.raises(NoTreeFoundError):
+        reconstruct(sky, out=tmp_path / "x", **FAST)
+    assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())
+
+
+def test_skeleton2d_writes_overlay_and_polylines(tmp_path):
+    sk, files = skeleton2d(SAMPLE, out=tmp_path / "sk.png", n_branches=4, max_size=320)
+    doc = json.loads(files["json"].read_text())
+    assert files["png"].exists() and len(doc["branches"]) == len(sk.branches)
+    assert int(np.sum(sk.order == 1)) >= 2 and doc["photo_size"][0] <= 320
+    with pytest.raises(InputError):
+        skeleton2d(SAMPLE, out=tmp_path / "sk.jpg")
+    with pytest.raises(OutputError):
+        skeleton2d(SAMPLE, out=tmp_path)
