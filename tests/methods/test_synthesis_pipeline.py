@@ -140,3 +140,16 @@ def test_skeleton2d_writes_overlay_and_polylines(tmp_path):
         skeleton2d(SAMPLE, out=tmp_path / "sk.jpg")
     with pytest.raises(OutputError):
         skeleton2d(SAMPLE, out=tmp_path)
+
+
+def test_glb_passes_khronos_validator(run):
+    import shutil
+    import subprocess
+
+    _, out = run
+    script = ROOT / "tools" / "gltf_validate.mjs"
+    if not shutil.which("node") or not (ROOT / "tools" / "node_modules" / "gltf-validator").exists():
+        pytest.skip("node or the npm gltf-validator is not installed (make validator)")
+    proc = subprocess.run(["node", str(script), str(out / "tree.glb")], capture_output=True, text=True, timeout=120)
+    report = json.loads(proc.stdout)
+    assert proc.returncode == 0 and report["numErrors"] == 0, proc.stdout
