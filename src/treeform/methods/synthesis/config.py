@@ -52,7 +52,7 @@ class SynthesisConfig:
     """Assumed height of the tree in metres (a single photo has no absolute scale)."""
     fov_y: float = 40.0
     """Vertical field of view of the photo's camera in degrees."""
-    search_size: int = 160
+    search_size: int = 224
     """Height in pixels of the candidates' silhouette renders (the photo's mask is reduced to it)."""
     prune: bool = True
     """Fit the leaves to the photo's silhouette: drop those projecting outside it, shrink the

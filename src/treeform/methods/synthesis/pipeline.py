@@ -33,9 +33,10 @@ STAGES = ("load", "segment", "species", "skeleton", "search", "model", "render",
 BARE_BOLE = 0.12
 """Fraction of the tree's height at the foot of the trunk that carries no twigs."""
 
-EDGE_FIT = 1.8
+EDGE_FIT = 1.0
 """A card whose centre lies ``d`` pixels inside the outline keeps at most ``2·EDGE_FIT·d`` pixels
-of edge (its leaves cover about 65 % of it, so a little overhang keeps the outline filled)."""
+of edge: it reaches the outline without overhanging it (1.8, an overhang, scored 5.4 % against
+5.2 % median on the isolated photos: dense crowns need no overhang to fill the outline)."""
 
 MIN_EDGE_SCALE = 0.3
 """Smallest fraction of its size a card keeps at the outline."""
