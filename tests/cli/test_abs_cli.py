@@ -31,3 +31,12 @@ def test_skeleton2d_cli(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert png.exists() and png.with_suffix(".json").exists() and "branches" in proc.stdout
     assert_clean_failure(cli("skeleton2d", tmp_path / "missing.jpg", "-o", png.with_name("b.png")))
+
+
+def test_skeleton2d_cli_source(tmp_path):
+    png = tmp_path / "wood.png"
+    proc = cli("skeleton2d", SAMPLE, "-o", png, "--source", "wood")
+    assert proc.returncode == 0, proc.stderr
+    assert "wood skeleton" in proc.stdout and json.loads(png.with_suffix(".json").read_text())["meta"]["mode"] == "wood"
+    bad = cli("skeleton2d", SAMPLE, "-o", tmp_path / "bad.png", "--source", "bark")  # a usage error (typer's own)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr and not (tmp_path / "bad.png").exists()

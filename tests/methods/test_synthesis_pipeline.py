@@ -10,7 +10,7 @@ from treeform._shared.errors import InputError, NoTreeFoundError, OutputError
 from treeform.io import read_glb_counts
 from treeform.methods import METHODS
 from treeform.methods.synthesis.pipeline import STAGES, reconstruct, skeleton2d
-from treeform.methods.synthesis.search import ERROR_SCALE, best_so_far, prior, propose, score
+from treeform.methods.synthesis.search import ERROR_SCALE, best_so_far, choose, prior, propose, score
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
@@ -153,3 +153,39 @@ def test_glb_passes_khronos_validator(run):
     proc = subprocess.run(["node", str(script), str(out / "tree.glb")], capture_output=True, text=True, timeout=120)
     report = json.loads(proc.stdout)
     assert proc.returncode == 0 and report["numErrors"] == 0, proc.stdout
+
+
+
+def test_visible_wood_adds_wood_skeleton_proposals(photos_dir, gl):
+    # a leafless plane tree against the sky: its branches are in the photo
+    res = reconstruct(photos_dir / "Platanus_occidentalis_2.jpg", seed=0, **{**FAST, "candidates": 6})
+    m = res.metrics
+    assert m["wood_visible"] is True and res.skeleton2d.meta["mode"] == m["skeleton_source"].replace("foliage", "tree")
+    sources = [c["skeleton"] for c in m["candidates"]]
+    assert sources[0] == "foliage" and sources.count("wood") == 3
+    for c in m["candidates"]:  # the wood's branches are observed: no prior on their number
+        if c["skeleton"] == "wood":
+            assert c["prior"] == 1.0 and c["n_branches"] == 0 and c["n_first_order"] >= 5
+    best = choose(m["candidates"])
+    assert m["skeleton_source"] == best["skeleton"] and m["n_first_order"] == best["n_first_order"]
+    assert m["search_error_best"] == best["error"]
+    # following the wood fits this photo better than any draw of foliage cuts
+    wood = min(c["error"] for c in m["candidates"] if c["skeleton"] == "wood")
+    assert wood < min(c["error"] for c in m["candidates"] if c["skeleton"] == "foliage")
+
+
+def test_leafy_photo_keeps_the_papers_search(run):
+    res, _ = run  # the leafy sample shows no wood to speak of: foliage cuts only
+    assert res.metrics["wood_visible"] is False
+    assert {c["skeleton"] for c in res.metrics["candidates"]} == {"foliage"}
+
+
+def test_skeleton2d_source(tmp_path, photos_dir):
+    bare = photos_dir / "Platanus_occidentalis_2.jpg"
+    auto, _ = skeleton2d(bare, out=tmp_path / "a.png", max_size=320)
+    assert auto.meta["mode"] == "wood" and int(np.sum(auto.order == 1)) >= 5
+    forced, _ = skeleton2d(bare, out=tmp_path / "b.png", max_size=320, source="foliage", n_branches=3)
+    assert forced.meta["mode"] == "tree"
+    assert skeleton2d(SAMPLE, out=tmp_path / "c.png", max_size=320)[0].meta["mode"] == "tree"
+    with pytest.raises(InputError, match="source"):
+        skeleton2d(SAMPLE, out=tmp_path / "d.png", source="bark")

@@ -8,7 +8,9 @@ from typing import Optional
 import numpy as np
 import typer
 
-from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
+from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, _choices, app, run_api
+
+SkeletonSource = _choices("SkeletonSource", "auto", "foliage", "wood")
 
 
 @app.command("skeleton2d")
@@ -20,12 +22,16 @@ def skeleton2d_cmd(
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (the cuts' draw)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
+    source: SkeletonSource = typer.Option(SkeletonSource.auto, "--source",
+                                          help="foliage: from the crown's outline (force field, DCE cuts); wood: "
+                                               "along the visible wood; auto: wood when the branches show."),
 ):
-    """Photo -> 2D branch skeleton from the foliage's shape (force field, DCE cuts; Guénard et al. 2013)."""
+    """Photo -> 2D branch skeleton: from the foliage's shape (force field, DCE cuts; Guénard et al. 2013) or the visible wood."""
     from treeform.methods.synthesis.pipeline import SKELETON2D_STAGES, skeleton2d
 
     sk, files = run_api(skeleton2d, photo, out=out, n_branches=branches, levels=levels, mask=mask, seed=seed,
-                        segmenter=segmenter.value, stages=SKELETON2D_STAGES, inputs=(photo, ("--mask", mask)))
+                        segmenter=segmenter.value, source=source.value, stages=SKELETON2D_STAGES,
+                        inputs=(photo, ("--mask", mask)))
     counts = np.bincount(sk.order, minlength=3) if len(sk.order) else [0, 0, 0]
-    typer.echo(f"{files['png']}: {len(sk.branches)} branches (order 1: {counts[1]}, order 2: {counts[2]}), "
-               f"polylines {files['json']}")
+    typer.echo(f"{files['png']}: {sk.meta['mode']} skeleton, {len(sk.branches)} branches (order 1: {counts[1]}, "
+               f"order 2: {counts[2]}), polylines {files['json']}")

@@ -258,22 +258,28 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
             probs = predict_species(seg.labels)
             species = next(iter(probs))
     cam, mpp = photo_camera(width_px, height_px, layout, cfg.tree_height, cfg.fov_y)
-    from treeform.methods.synthesis.search import SilhouetteScorer, best_so_far, prior, propose, score
+    from treeform.methods.synthesis.search import SilhouetteScorer, best_so_far, choose, prior, propose, score
 
-    proposals = propose(cfg.candidates, species, n_branches=cfg.n_branches, seed=cfg.seed)
+    from treeform.skeleton import WOOD_VISIBLE, wood_fraction
+
+    wood_visible = wood_fraction(tree_mask, seg.wood_mask) >= WOOD_VISIBLE
+    proposals = propose(cfg.candidates, species, n_branches=cfg.n_branches, seed=cfg.seed, wood=wood_visible)
     sk_cache: dict = {}
     with timer.stage("skeleton"):
-        from treeform.skeleton import foliage_skeleton
+        from treeform.skeleton import foliage_skeleton, wood_skeleton
 
         trunk = np.asarray(layout.trunk_path, np.float64)
         tol = SPECIES_PRIORS[species][2]
 
         def skeleton_for(p):
-            key = (p.n_branches, p.cut_seed)
+            key = ("wood",) if p.skeleton == "wood" else (p.n_branches, p.cut_seed)
             if key not in sk_cache:
-                sk = foliage_skeleton(layout.crown_mask, n_branches=p.n_branches, mode="tree",
-                                                 trunk=trunk, levels=cfg.levels, angle_tolerance=tol,
-                                                 seed=cfg.seed * 1009 + p.cut_seed)
+                if p.skeleton == "wood":
+                    sk = wood_skeleton(tree_mask, seg.wood_mask, trunk=trunk, levels=cfg.levels)
+                else:
+                    sk = foliage_skeleton(layout.crown_mask, n_branches=p.n_branches, mode="tree",
+                                          trunk=trunk, levels=cfg.levels, angle_tolerance=tol,
+                                          seed=cfg.seed * 1009 + p.cut_seed)
                 sk_cache[key] = (sk, foliage_reach(sk, layout.crown_mask))
             return sk_cache[key]
 
@@ -297,12 +303,15 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                                             edge_distance=edge, leaf_size=leaf_size, reach=reach_px,
                                             depth_bound=depth_bound, trunk_radius=trunk_radius)
                 err, _ = scorer.error(tree_mesh(skel, fol, radial_segments=4, leaf_texture=tex, seed=cfg.seed))
-                pm = prior(p.n_branches, species)
-                candidates.append({"index": i, **p.to_dict(), "error": round(err, 6), "prior": round(pm, 6),
-                                   "score": round(score(err, p.n_branches, species), 6), "leaves": len(fol)})
+                observed = p.skeleton == "wood"
+                pm = 1.0 if observed else prior(p.n_branches, species)
+                candidates.append({"index": i, **p.to_dict(), "n_first_order": int(sk2d.meta["n_first_order"]),
+                                   "error": round(err, 6), "prior": round(pm, 6),
+                                   "score": round(score(err, p.n_branches, species, observed=observed), 6),
+                                   "leaves": len(fol)})
         finally:
             scorer.release()
-        best = max(candidates, key=lambda c: (c["score"], -c["index"]))
+        best = choose(candidates)
         chosen = proposals[best["index"]]
     with timer.stage("model"):
         from treeform.geometry import LOD_PRESETS, bspline_skeleton, tree_textures
@@ -343,6 +352,9 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
             **({"species_predicted": next(iter(probs)),
                 "species_probabilities": {k: round(v, 4) for k, v in probs.items()}} if probs else {}),
             "n_branches": chosen.n_branches,
+            "n_first_order": int(sk2d.meta["n_first_order"]),
+            "skeleton_source": chosen.skeleton,
+            "wood_visible": bool(wood_visible),
             "candidates": candidates,
             "candidate_curve": [round(e, 6) for e in best_so_far(errors)],
             "search_error_first": errors[0],
@@ -393,8 +405,8 @@ SKELETON2D_STAGES = ("load", "segment", "skeleton", "export")
 
 
 def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, segmenter: str = "classical",
-               max_size: int = 640, seed: int = 0, progress: ProgressCallback | None = None):
-    """The 2D analysis of seed 004 alone: the photo's foliage skeleton drawn over it (§3).
+               max_size: int = 640, seed: int = 0, source: str = "auto", progress: ProgressCallback | None = None):
+    """The 2D analysis of seed 004 alone: the photo's branch skeleton drawn over it (§3).
 
     Parameters
     ----------
@@ -405,11 +417,17 @@ def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, s
     mask : path or ndarray (H, W), optional
         User tree mask (white = tree) replacing the segmentation.
     n_branches, levels : int
-        First-order branches and branch orders of :func:`treeform.skeleton.foliage_skeleton`.
+        First-order branches (foliage skeleton only) and branch orders.
     segmenter : {"classical", "learned"}
     max_size : int
         Long side the photo is reduced to.
     seed : int
+    source : {"auto", "foliage", "wood"}
+        "foliage": :func:`treeform.skeleton.foliage_skeleton` on the crown (§3, branches
+        inferred from the outline); "wood": :func:`treeform.skeleton.wood_skeleton` (the
+        visible wood's shortest paths to the base); "auto": wood when at least
+        :data:`~treeform.skeleton.WOOD_VISIBLE` of the tree's pixels are wood (leafless and
+        sparse crowns), else foliage.
 
     Returns
     -------
@@ -424,11 +442,12 @@ def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, s
     from treeform.io.images import write_png
     from treeform.io.outputs import check_out_file
     from treeform.methods._single_photo import load_photo, segment_or_mask
-    from treeform.skeleton import draw_skeleton, foliage_skeleton
+    from treeform.skeleton import WOOD_VISIBLE, draw_skeleton, foliage_skeleton, wood_fraction, wood_skeleton
 
     check_int(n_branches, "n_branches", 1, 32)
     check_int(levels, "levels", 1, 3)
     check_choice(segmenter, "segmenter", ("classical", "learned"))
+    check_choice(source, "source", ("auto", "foliage", "wood"))
     png = check_out_file(out, "-o", suffix=".png")
     timer = StageTimer(progress)
     with timer.stage("load"):
@@ -437,8 +456,14 @@ def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, s
         seg = segment_or_mask(ph.image, user_mask, segmenter=segmenter, seed=seed)
         layout = tree_layout(seg)
     with timer.stage("skeleton"):
-        sk = foliage_skeleton(layout.crown_mask, n_branches=n_branches, mode="tree",
-                              trunk=np.asarray(layout.trunk_path, np.float64), levels=levels, seed=seed)
+        trunk = np.asarray(layout.trunk_path, np.float64)
+        if source == "auto":
+            source = "wood" if wood_fraction(seg.tree_mask, seg.wood_mask) >= WOOD_VISIBLE else "foliage"
+        if source == "wood":
+            sk = wood_skeleton(seg.tree_mask, seg.wood_mask, trunk=trunk, levels=levels)
+        else:
+            sk = foliage_skeleton(layout.crown_mask, n_branches=n_branches, mode="tree", trunk=trunk, levels=levels,
+                                  seed=seed)
     with timer.stage("export"):
         overlay = draw_skeleton(ph.image, sk)
         doc = {"photo": ph.source, "photo_size": [ph.shape[1], ph.shape[0]], **sk.to_dict()}

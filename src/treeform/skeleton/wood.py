@@ -1,0 +1,338 @@
+"""2D skeleton of a tree from its visible wood: a shortest-path tree to the trunk base.
+
+Seed 004 §3 infers branches from the foliage outline alone, for crowns that hide them. Where
+the photo shows wood (leafless and sparse crowns, branches seen through gaps), the branches
+are in the image and the skeleton should follow them. :func:`wood_skeleton` does this the way
+seed 002 §5 builds its visible branch graph, in 2D: a cost image that is cheap along wood,
+dearer across foliage (a branch hidden behind leaves is bridged, not lost) and closed outside
+the tree; every branch tip (the end points of the thinned wood, plus the tips of the thinned
+crown where foliage hides the wood) is joined to the base by its least-cost path (Dijkstra,
+:class:`skimage.graph.MCP_Geometric`). The paths form a tree; it is cut into branches by the
+"longest reach continues" rule: at every fork the child whose subtree reaches farthest carries
+the parent on, the others start branches of the next order. The trunk is the chain from the
+base; first-order branches leave it; and so on for ``levels`` orders.
+
+The result is a :class:`~treeform.skeleton.foliage.Skeleton2D` like the foliage skeleton's
+(``meta["mode"] == "wood"``, no cuts), so drawing, lifting to 3D and the analysis-by-synthesis
+pipeline take either.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from scipy import ndimage as ndi
+
+from treeform._shared.checks import check_array, check_int, check_positive
+from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform.skeleton.field import check_mask, work_scale
+from treeform.skeleton.foliage import MIN_PIXELS, Skeleton2D
+
+__all__ = ["wood_skeleton", "wood_fraction", "WOOD_VISIBLE"]
+
+WOOD_VISIBLE = 0.10
+"""Share of the tree's pixels that must be wood for its branches to count as visible: the
+analysis-by-synthesis search then also proposes the wood skeleton, and ``skeleton2d`` picks it
+(leafless photos have 0.3-0.6, leafy crowns under 0.1 with the classical segmentation)."""
+
+_EIGHT = np.ones((3, 3), np.uint8)
+
+
+def wood_fraction(mask, wood) -> float:
+    """Share of the tree's pixels that are wood, the cue that the branches are visible.
+
+    Examples
+    --------
+    >>> m = np.zeros((10, 10), bool); m[2:8, 2:8] = True
+    >>> w = np.zeros_like(m); w[2:8, 4] = True
+    >>> round(wood_fraction(m, w), 3)
+    0.167
+    """
+    m = check_mask(mask)
+    w = check_mask(wood, "wood")
+    n = int(m.sum())
+    return float((w & m).sum()) / n if n else 0.0
+
+
+def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 400, foliage_cost: float = 6.0,
+                  min_length: float = 0.05, crown_tips: bool = True) -> Skeleton2D:
+    """Skeleton of a tree image from its visible wood (shortest paths to the base).
+
+    Parameters
+    ----------
+    mask : array_like, shape (H, W), bool
+        Tree silhouette (wood and foliage).
+    wood : array_like, shape (H, W), bool
+        Wood pixels (trunk and branches); may be empty (then the crown's tips alone are used).
+    trunk : array_like, shape (K, 2), optional
+        Trunk polyline ``(x, y)`` from the base upward; its first point is the root of the
+        paths. None: the middle of the lowest tree pixels.
+    levels : int
+        Branch orders to return (1..3) besides the trunk.
+    max_side : int
+        Long side of the working size (64..4096); thin branches survive the reduction (a
+        working pixel is wood when a fifth of it is).
+    foliage_cost : float
+        Cost of a step through foliage relative to a step along wood (>= 1): how strongly
+        the paths keep to visible wood.
+    min_length : float
+        Shortest branch kept, as a fraction of the tree's height in pixels (0..1).
+    crown_tips : bool
+        Also end paths at the tips of the thinned silhouette (branches hidden by foliage).
+
+    Returns
+    -------
+    Skeleton2D
+        Branch 0 the trunk, then the first-order branches by attachment height (base first),
+        then the higher orders grouped by parent; ``partition`` labels each tree pixel with its
+        nearest first-order branch; ``meta["mode"] == "wood"``.
+
+    Raises
+    ------
+    InputError
+        A mask is not 2-D, the shapes differ, or an option is out of range.
+    NoTreeFoundError
+        The mask has fewer than :data:`~treeform.skeleton.foliage.MIN_PIXELS` pixels.
+
+    Examples
+    --------
+    >>> m = np.zeros((120, 80), bool)
+    >>> m[20:118, 39:42] = True                      # trunk
+    >>> for k in range(30):                          # one branch up to the right
+    ...     m[70 - k, 41 + k:44 + k] = True
+    >>> sk = wood_skeleton(m, m)
+    >>> [int(o) for o in sk.order]
+    [0, 1]
+    >>> bool(sk.branches[1][-1, 0] > 65)             # its tip is at the right
+    True
+    """
+    from skimage.graph import MCP_Geometric
+    from skimage.morphology import skeletonize
+
+    m = check_mask(mask)
+    wd = check_mask(wood, "wood")
+    if wd.shape != m.shape:
+        raise InputError(f"wood: expected the mask's shape {m.shape}, got {wd.shape}")
+    levels = check_int(levels, "levels", 1, 3)
+    max_side = check_int(max_side, "max_side", 64, 4096)
+    foliage_cost = check_positive(foliage_cost, "foliage_cost")
+    if foliage_cost < 1.0:
+        raise InputError(f"foliage_cost: expected a number >= 1, got {foliage_cost!r}")
+    min_length = check_positive(min_length, "min_length", allow_zero=True)
+    if min_length >= 1.0:
+        raise InputError(f"min_length: expected a fraction in [0, 1), got {min_length!r}")
+    if trunk is not None:
+        trunk = check_array(trunk, "trunk", ndim=2, dtype_kind="biuf", shape=(None, 2), min_size=2).astype(float)
+    count = int(m.sum())
+    if count < MIN_PIXELS:
+        raise NoTreeFoundError(f"mask: only {count} tree pixels, need at least {MIN_PIXELS}")
+    H, W = m.shape
+    h, w = work_scale((H, W), max_side)
+    sx, sy = w / W, h / H
+    scale = np.array([sx, sy])
+
+    def small(a):
+        if (h, w) == (H, W):
+            return a.copy()
+        return cv2.resize(a.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) >= 0.2
+
+    mw = small(m)
+    ww = small(wd & m) & mw
+    # bridge the one-pixel gaps of thin, aliased branches
+    passable = cv2.morphologyEx(mw.astype(np.uint8), cv2.MORPH_CLOSE, _EIGHT).astype(bool) | mw
+    dt_wood = ndi.distance_transform_edt(ww)
+    cost = np.full((h, w), np.inf)
+    cost[passable] = foliage_cost
+    cost[ww] = 1.0 + 1.0 / (1.0 + dt_wood[ww])  # cheapest along a branch's middle
+
+    ys, xs = np.nonzero(mw)
+    y_top, y_bot = int(ys.min()), int(ys.max())
+    tree_h = max(float(y_bot - y_top), 1.0)
+    if trunk is not None:
+        root = (trunk[0] + 0.5) * scale - 0.5
+    else:
+        band = ys >= y_bot - max(1.0, 0.01 * tree_h)
+        root = np.array([xs[band].mean(), float(y_bot)])
+    root = _nearest_pixel(passable, root)
+
+    mcp = MCP_Geometric(cost, fully_connected=True)
+    reach_cost, _ = mcp.find_costs([tuple(root)])
+    tips = _end_points(skeletonize(ww))
+    if crown_tips:
+        crown = cv2.morphologyEx(mw.astype(np.uint8), cv2.MORPH_OPEN, _EIGHT).astype(bool)
+        tips = np.vstack([tips, _end_points(skeletonize(ndi.binary_fill_holes(crown)))])
+    if len(tips):
+        tips = tips[np.isfinite(reach_cost[tips[:, 0], tips[:, 1]])]
+    # the path tree: node id per pixel, parent id, arc length from the root
+    node_of = {tuple(root): 0}
+    parent, pix = [-1], [tuple(root)]
+    for r, c in tips:
+        path = mcp.traceback((int(r), int(c)))
+        prev = 0
+        for p in path[1:]:
+            p = tuple(p)
+            k = node_of.get(p)
+            if k is None:
+                k = len(pix)
+                node_of[p] = k
+                pix.append(p)
+                parent.append(prev)
+            prev = k
+    parent = np.asarray(parent, np.int64)
+    pix = np.asarray(pix, np.int64)  # (row, col)
+    chains = _decompose(pix, parent, levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h))
+
+    def to_full(p):
+        return (np.asarray(p, float) + 0.5) / scale - 0.5
+
+    dt_mask = ndi.distance_transform_edt(m)
+    branches, widths, order, par = [], [], [], []
+    for ch in chains:
+        xy = _smooth(pix[ch["nodes"]][:, ::-1].astype(float))
+        full = np.clip(to_full(xy), 0, [W - 1, H - 1])
+        ij = np.round(full).astype(int)
+        branches.append(full)
+        widths.append(np.zeros(len(full)) if ch["order"] == 0 else dt_mask[ij[:, 1], ij[:, 0]].astype(float))
+        order.append(ch["order"])
+        par.append(ch["parent"])
+    if trunk is not None and len(branches[0]) < 2:
+        branches[0] = np.asarray(trunk, float)
+        widths[0] = np.zeros(len(trunk))
+    partition, area_branch = _partition(m, branches, order)
+    meta = {"mode": "wood", "levels": levels, "max_side": max_side, "foliage_cost": foliage_cost,
+            "min_length": min_length, "crown_tips": bool(crown_tips), "work_shape": [h, w],
+            "scale": [float(sx), float(sy)], "trunk_auto": trunk is None, "tips": int(len(tips)),
+            "wood_fraction": round(float((wd & m).sum()) / count, 4),
+            "n_first_order": int(sum(1 for o in order if o == 1)), "area_branch": area_branch,
+            "dce_polygon": [], "ending_points": [], "sub_cuts": []}
+    return Skeleton2D(shape=(H, W), branches=branches, widths=widths, order=np.asarray(order, np.int32),
+                      parent=np.asarray(par, np.int64), cuts=[], partition=partition, field=None, meta=meta)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _nearest_pixel(mask: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(row, col) of the ``mask`` pixel nearest to the point ``p = (x, y)``."""
+    ys, xs = np.nonzero(mask)
+    k = int(np.argmin((xs - p[0]) ** 2 + (ys - p[1]) ** 2))
+    return np.array([ys[k], xs[k]], np.int64)
+
+
+def _end_points(sk: np.ndarray) -> np.ndarray:
+    """(row, col) of the pixels of a thinned image with exactly one 8-neighbour."""
+    n = cv2.filter2D(sk.astype(np.uint8), -1, _EIGHT, borderType=cv2.BORDER_CONSTANT)
+    return np.argwhere(sk & (n == 2)).astype(np.int64)
+
+
+def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: float, look: float) -> list[dict]:
+    """Cut a pixel tree into chains: at each fork the straightest far-reaching child continues.
+
+    At a fork of a branch, the children whose subtree reaches at least half as far (arc
+    length) as the farthest one compete; at a fork of the trunk, those whose subtree climbs
+    within ``2 look`` rows of the highest one (the leader reaches the top of the tree). The
+    one turning least from the parent's direction (both measured over ``look`` pixels, the
+    child's along its farthest-reaching path) carries the chain on, the others
+    start chains of the next order. Returns the chains breadth first (trunk first), each
+    ``{"nodes", "order", "parent"}`` with ``nodes`` from the attachment (the fork pixel) to
+    the tip; a side chain whose reach from its fork is under ``min_len`` pixels is dropped
+    with its subtree.
+    """
+    n = len(parent)
+    step = np.zeros(n)
+    step[1:] = np.linalg.norm(pix[1:] - pix[parent[1:]], axis=1)
+    depth = np.zeros(n)
+    for k in range(1, n):  # parents are created before their children
+        depth[k] = depth[parent[k]] + step[k]
+    reach = depth.copy()  # farthest arc length below each node
+    heavy = np.full(n, -1, np.int64)  # the child on the path to that farthest point
+    for k in range(n - 1, 0, -1):
+        p = parent[k]
+        if reach[k] > reach[p] or (reach[k] == reach[p] and heavy[p] > k):
+            reach[p] = reach[k]
+            heavy[p] = k
+    top = pix[:, 0].astype(float)  # highest row (smallest) below each node
+    for k in range(n - 1, 0, -1):
+        top[parent[k]] = min(top[parent[k]], top[k])
+    children: list[list[int]] = [[] for _ in range(n)]
+    for k in range(1, n):
+        children[parent[k]].append(k)
+
+    def ahead(k: int) -> np.ndarray:
+        start = depth[parent[k]]
+        while heavy[k] >= 0 and depth[k] - start < look:
+            k = int(heavy[k])
+        return pix[k].astype(float)
+
+    def behind(k: int) -> np.ndarray:
+        end = depth[k]
+        while parent[k] >= 0 and end - depth[k] < look:
+            k = int(parent[k])
+        return pix[k].astype(float)
+
+    def unit(v):
+        return v / max(float(np.linalg.norm(v)), 1e-9)
+
+    up = np.array([-1.0, 0.0])  # (row, col): the trunk starts upward
+    chains: list[dict] = []
+    queue = [(0, 0, -1)]  # (start node, order, parent chain)
+    while queue:
+        start, o, pc = queue.pop(0)
+        nodes = [start] if start == 0 else [int(parent[start]), start]
+        k = start
+        sides = []
+        while children[k]:
+            kids = children[k]
+            if len(kids) > 1:
+                if o == 0:
+                    high = min(top[c] for c in kids)
+                    pool = [c for c in kids if top[c] <= high + 2 * look]
+                else:
+                    far = max(reach[c] - depth[k] for c in kids)
+                    pool = [c for c in kids if reach[c] - depth[k] >= 0.5 * far]
+                d_in = unit(pix[k] - behind(k)) if k else up
+                best = max(pool, key=lambda c: (float(unit(ahead(c) - pix[k]) @ d_in), -c))
+            else:
+                best = kids[0]
+            sides += [c for c in kids if c != best]
+            k = best
+            nodes.append(k)
+        idx = len(chains)
+        chains.append({"nodes": np.asarray(nodes, np.int64), "order": o, "parent": pc})
+        if o >= levels:
+            continue
+        for s_ in sorted(sides, key=lambda c: depth[c]):
+            if reach[s_] - depth[parent[s_]] >= max(min_len, 2.0):
+                queue.append((s_, o + 1, idx))
+    return chains
+
+
+def _smooth(xy: np.ndarray, window: int = 5) -> np.ndarray:
+    """Moving average of a pixel chain (ends kept), then one point every ~2 pixels."""
+    if len(xy) > window:
+        k = np.ones(window) / window
+        pad = window // 2
+        ext = np.vstack([np.repeat(xy[:1], pad, 0), xy, np.repeat(xy[-1:], pad, 0)])
+        sm = np.stack([np.convolve(ext[:, j], k, mode="valid") for j in range(2)], axis=1)
+        sm[0], sm[-1] = xy[0], xy[-1]
+        xy = sm
+    keep = np.unique(np.r_[np.arange(0, len(xy), 2), len(xy) - 1])
+    out = xy[keep]
+    return out if len(out) >= 2 else np.vstack([xy[:1], xy[-1:]])
+
+
+def _partition(mask: np.ndarray, branches: list, order: list) -> tuple[np.ndarray, list]:
+    """Each mask pixel's nearest first-order branch (area index), and the area -> branch table."""
+    H, W = mask.shape
+    first = [i for i, o in enumerate(order) if o == 1]
+    part = np.full((H, W), -1, np.int32)
+    if not first:
+        part[mask] = 0
+        return part, [-1]
+    lines = np.zeros((H, W), np.int32)
+    for a, i in enumerate(first):
+        p = np.round(np.asarray(branches[i]) * 16).astype(np.int32).reshape(-1, 1, 2)
+        cv2.polylines(lines, [p], False, a + 1, 1, cv2.LINE_8, shift=4)
+    _, (iy, ix) = ndi.distance_transform_edt(lines == 0, return_indices=True)
+    part = lines[iy, ix] - 1
+    part[~mask] = -1
+    return part.astype(np.int32), first
