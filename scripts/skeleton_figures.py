@@ -1,4 +1,4 @@
-"""Make docs/images/skeleton_{field,dce,cuts}.png: seed 004 §3 on a real photo.
+"""Make docs/images/skeleton_{field,dce,cuts,wood}.png: seed 004 §3 on a real photo, and the wood skeleton.
 
 - ``skeleton_field.png`` (Fig. 2 / 3): Cornea et al.'s field (contour sources only) and the
   field with the cuts as artificial contour points (eq. (1)); log magnitude in grey, arrows
@@ -7,12 +7,16 @@
   vertices, the inward vertices in blue.
 - ``skeleton_cuts.png`` (Fig. 4 / 7): the cuts, the partition and the final skeleton over the
   photo, with first-order branches only and with the second order.
+- ``skeleton_wood.png``: a leafless photo (``--bare``), its segmentation's wood, the foliage
+  skeleton (§3: branches from the outline alone) and the wood skeleton (least-cost paths to the
+  base along the visible wood) that the abs search proposes when the branches show.
 
 The photo (Celtis occidentalis, Chhe, public domain, via Wikimedia Commons) comes from
 ``../shared/data/photos``; it is segmented with treeform's classical segmenter.
 
 Run: `.venv/bin/python scripts/skeleton_figures.py [--data ../shared/data] [--out docs/images]
-[--photo Celtis_occidentalis_1.jpg] [--n 5] [--seed 0]` (same inputs -> same pictures).
+[--photo Celtis_occidentalis_1.jpg] [--bare Platanus_occidentalis_2.jpg] [--n 5] [--seed 0]`
+(same inputs -> same pictures).
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "images")
     ap.add_argument("--photo", default="Celtis_occidentalis_1.jpg")
+    ap.add_argument("--bare", default="Platanus_occidentalis_2.jpg", help="a leafless photo for skeleton_wood.png")
     ap.add_argument("--n", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -134,6 +139,25 @@ def main() -> None:
                   _panel(draw_skeleton(image, sk2), "with second order"),
                   _panel(draw_skeleton(np.full_like(image, 255), sk2, show_partition=False), "skeleton")]),
           args.out / "skeleton_cuts.png")
+
+    # the wood skeleton of a leafless tree, beside the foliage skeleton of the same mask
+    from treeform.crown.layout import tree_layout
+    from treeform.skeleton import wood_skeleton
+
+    bare = _load(args.data / "photos" / args.bare)
+    seg = segment(bare, method="classical", seed=0)
+    lay = tree_layout(seg)
+    trunk = np.asarray(lay.trunk_path, np.float64)
+    wood_img = np.where(seg.wood_mask[..., None], np.array([150, 60, 20], np.uint8),
+                        np.where(seg.tree_mask[..., None], np.array([120, 200, 120], np.uint8), 255)).astype(np.uint8)
+    fol = foliage_skeleton(lay.crown_mask, n_branches=args.n, levels=2, trunk=trunk, seed=args.seed)
+    wsk = wood_skeleton(seg.tree_mask, seg.wood_mask, trunk=trunk, levels=2)
+    faded = (0.5 * bare + 0.5 * 255).astype(np.uint8)
+    _save(_sheet([_panel(bare, "leafless photo"), _panel(wood_img, "wood (brown) / foliage (green)"),
+                  _panel(draw_skeleton(faded, fol), f"foliage skeleton (n = {args.n})"),
+                  _panel(draw_skeleton(faded, wsk, show_partition=False),
+                         f"wood skeleton ({int((wsk.order == 1).sum())} first order)")]),
+          args.out / "skeleton_wood.png")
 
 
 if __name__ == "__main__":

@@ -30,12 +30,15 @@ from treeform.skeleton.foliage import MIN_PIXELS, Skeleton2D
 
 __all__ = ["wood_skeleton", "wood_fraction", "WOOD_VISIBLE"]
 
-WOOD_VISIBLE = 0.10
+WOOD_VISIBLE = 0.05
 """Share of the tree's pixels that must be wood for its branches to count as visible: the
-analysis-by-synthesis search then also proposes the wood skeleton, and ``skeleton2d`` picks it
-(leafless photos have 0.3-0.6, leafy crowns under 0.1 with the classical segmentation)."""
+analysis-by-synthesis search then also proposes the wood skeleton, and ``skeleton2d`` picks it.
+With the classical segmentation, leafless photos have 0.3-0.6, sparse or open crowns 0.05-0.2,
+dense crowns under 0.05; the synthetic renders of the growth engine 0.02-0.12 leaves on."""
 
 _EIGHT = np.ones((3, 3), np.uint8)
+_WOOD_GAIN = 0.5
+_PROMOTE = 0.04
 
 
 def wood_fraction(mask, wood) -> float:
@@ -143,7 +146,7 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
     dt_wood = ndi.distance_transform_edt(ww)
     cost = np.full((h, w), np.inf)
     cost[passable] = foliage_cost
-    cost[ww] = 1.0 + 1.0 / (1.0 + dt_wood[ww])  # cheapest along a branch's middle
+    cost[ww] = 1.0 + _WOOD_GAIN / (0.5 + dt_wood[ww])  # cheapest along thick wood, along its middle
 
     ys, xs = np.nonzero(mw)
     y_top, y_bot = int(ys.min()), int(ys.max())
@@ -180,7 +183,8 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
             prev = k
     parent = np.asarray(parent, np.int64)
     pix = np.asarray(pix, np.int64)  # (row, col)
-    chains = _decompose(pix, parent, levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h))
+    chains = _decompose(pix, parent, levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h),
+                        promote=_PROMOTE * tree_h)
 
     def to_full(p):
         return (np.asarray(p, float) + 0.5) / scale - 0.5
@@ -224,7 +228,8 @@ def _end_points(sk: np.ndarray) -> np.ndarray:
     return np.argwhere(sk & (n == 2)).astype(np.int64)
 
 
-def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: float, look: float) -> list[dict]:
+def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: float, look: float,
+               promote: float = 0.0) -> list[dict]:
     """Cut a pixel tree into chains: at each fork the straightest far-reaching child continues.
 
     At a fork of a branch, the children whose subtree reaches at least half as far (arc
@@ -298,11 +303,13 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
             nodes.append(k)
         idx = len(chains)
         chains.append({"nodes": np.asarray(nodes, np.int64), "order": o, "parent": pc})
-        if o >= levels:
-            continue
+        base = depth[nodes[0]]
         for s_ in sorted(sides, key=lambda c: depth[c]):
             if reach[s_] - depth[parent[s_]] >= max(min_len, 2.0):
-                queue.append((s_, o + 1, idx))
+                if o >= 1 and depth[parent[s_]] - base < promote:  # a sibling sharing the stem's pixels
+                    queue.append((s_, o, pc))
+                elif o < levels:
+                    queue.append((s_, o + 1, idx))
     return chains
 
 

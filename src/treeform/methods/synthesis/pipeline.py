@@ -274,13 +274,14 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
         def skeleton_for(p):
             key = ("wood",) if p.skeleton == "wood" else (p.n_branches, p.cut_seed)
             if key not in sk_cache:
-                if p.skeleton == "wood":
+                if p.skeleton == "wood":  # the whole tree: crown parts apart from the main one too
                     sk = wood_skeleton(tree_mask, seg.wood_mask, trunk=trunk, levels=cfg.levels)
+                    sk_cache[key] = (sk, foliage_reach(sk, tree_mask))
                 else:
                     sk = foliage_skeleton(layout.crown_mask, n_branches=p.n_branches, mode="tree",
                                           trunk=trunk, levels=cfg.levels, angle_tolerance=tol,
                                           seed=cfg.seed * 1009 + p.cut_seed)
-                sk_cache[key] = (sk, foliage_reach(sk, layout.crown_mask))
+                    sk_cache[key] = (sk, foliage_reach(sk, layout.crown_mask))
             return sk_cache[key]
 
         skeleton_for(proposals[0])
