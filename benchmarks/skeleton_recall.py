@@ -443,7 +443,7 @@ def main():
                         "min_gt_fraction": args.min_gt, "n_cap": N_CAP, "resample": N_RESAMPLE,
                         "skeleton": {"mode": "tree", "trunk": None, "levels": 1, "seed": 0}},
            "summary": summary, "cases": rows, "abs": abs_rows}
-    Path(args.json).write_text(json.dumps(doc, indent=1, default=float))
+    Path(args.json).write_text(json.dumps(doc, default=float, separators=(",", ":")))
 
 
 if __name__ == "__main__":
