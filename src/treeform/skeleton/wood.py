@@ -39,6 +39,8 @@ dense crowns under 0.05; the synthetic renders of the growth engine 0.02-0.12 le
 _EIGHT = np.ones((3, 3), np.uint8)
 _WOOD_GAIN = 0.5
 _PROMOTE = 0.04
+_PROMOTE_BIG = 0.10
+_BIG = 0.5
 
 
 def wood_fraction(mask, wood) -> float:
@@ -184,7 +186,8 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
     parent = np.asarray(parent, np.int64)
     pix = np.asarray(pix, np.int64)  # (row, col)
     chains = _decompose(pix, parent, levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h),
-                        promote=_PROMOTE * tree_h)
+                        promote=_PROMOTE * tree_h,
+                        promote_big=_PROMOTE_BIG * tree_h)
 
     def to_full(p):
         return (np.asarray(p, float) + 0.5) / scale - 0.5
@@ -229,7 +232,7 @@ def _end_points(sk: np.ndarray) -> np.ndarray:
 
 
 def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: float, look: float,
-               promote: float = 0.0) -> list[dict]:
+               promote: float = 0.0, promote_big: float = 0.0) -> list[dict]:
     """Cut a pixel tree into chains: at each fork the straightest far-reaching child continues.
 
     At a fork of a branch, the children whose subtree reaches at least half as far (arc
@@ -304,9 +307,14 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
         idx = len(chains)
         chains.append({"nodes": np.asarray(nodes, np.int64), "order": o, "parent": pc})
         base = depth[nodes[0]]
+        after = dict(zip(nodes[:-1], nodes[1:]))
         for s_ in sorted(sides, key=lambda c: depth[c]):
-            if reach[s_] - depth[parent[s_]] >= max(min_len, 2.0):
-                if o >= 1 and depth[parent[s_]] - base < promote:  # a sibling sharing the stem's pixels
+            f = int(parent[s_])
+            own = reach[s_] - depth[f]
+            if own >= max(min_len, 2.0):
+                near = depth[f] - base < promote
+                big = depth[f] - base < promote_big and own >= _BIG * (reach[after[f]] - depth[f])
+                if o >= 1 and (near or big):  # a sibling sharing the stem's pixels
                     queue.append((s_, o, pc))
                 elif o < levels:
                     queue.append((s_, o + 1, idx))
