@@ -37,9 +37,11 @@ With the classical segmentation, leafless photos have 0.3-0.6, sparse or open cr
 dense crowns under 0.05; the synthetic renders of the growth engine 0.02-0.12 leaves on."""
 
 _EIGHT = np.ones((3, 3), np.uint8)
-_WOOD_GAIN = 0.5
-_PROMOTE = 0.04
-_PROMOTE_BIG = 0.10
+# Constants chosen on growth seeds 1-2 of benchmarks/skeleton_recall.py (pooled F1 of first-order
+# branches, leaves on and off), held out on seeds 4-6 (see BENCHMARKS.md):
+_WOOD_GAIN = 0.5  # step cost along wood: 1 + gain / (0.5 + distance to the wood's edge)
+_PROMOTE = 0.04  # sibling rule, fraction of the tree's height: any side chain this near the attachment
+_PROMOTE_BIG = 0.10  # ... and side chains reaching _BIG times as far as the chain goes on, this near
 _BIG = 0.5
 
 
@@ -240,10 +242,13 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
     within ``2 look`` rows of the highest one (the leader reaches the top of the tree). The
     one turning least from the parent's direction (both measured over ``look`` pixels, the
     child's along its farthest-reaching path) carries the chain on, the others
-    start chains of the next order. Returns the chains breadth first (trunk first), each
-    ``{"nodes", "order", "parent"}`` with ``nodes`` from the attachment (the fork pixel) to
-    the tip; a side chain whose reach from its fork is under ``min_len`` pixels is dropped
-    with its subtree.
+    start chains of the next order — except on a branch (not the trunk) near its attachment:
+    a side chain forking within ``promote`` pixels of it, or within ``promote_big`` pixels and
+    reaching at least :data:`_BIG` times as far as the chain goes on from there, is the chain's
+    sibling (same order, same parent): two limbs whose stems share pixels in the image. Returns
+    the chains breadth first (trunk first), each ``{"nodes", "order", "parent"}`` with
+    ``nodes`` from the attachment (the fork pixel) to the tip; a side chain whose reach from
+    its fork is under ``min_len`` pixels is dropped with its subtree.
     """
     n = len(parent)
     step = np.zeros(n)
