@@ -40,3 +40,11 @@ def test_skeleton2d_cli_source(tmp_path):
     assert "wood skeleton" in proc.stdout and json.loads(png.with_suffix(".json").read_text())["meta"]["mode"] == "wood"
     bad = cli("skeleton2d", SAMPLE, "-o", tmp_path / "bad.png", "--source", "bark")  # a usage error (typer's own)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and not (tmp_path / "bad.png").exists()
+
+
+def test_reconstruct_abs_leaf_texture(tmp_path):
+    out = tmp_path / "plain"
+    proc = cli("reconstruct", SAMPLE, "--method", "abs", "--candidates", "2", "--lod", "low", "--species", "oak",
+               "--leaf-texture", "procedural", "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / "config.json").read_text())["config"]["leaf_texture"] == "procedural"

@@ -189,3 +189,15 @@ def test_skeleton2d_source(tmp_path, photos_dir):
     assert skeleton2d(SAMPLE, out=tmp_path / "c.png", max_size=320)[0].meta["mode"] == "tree"
     with pytest.raises(InputError, match="source"):
         skeleton2d(SAMPLE, out=tmp_path / "d.png", source="bark")
+
+
+def test_photo_textured_leaves_look_like_the_photo(run, gl):
+    res, _ = run  # default: each card a tile of the photo, the seen ones facing the camera
+    assert res.config.leaf_texture == "photo" and res.foliage.uv is not None
+    assert len(res.foliage.uv) == len(res.foliage)
+    plain = reconstruct(SAMPLE, seed=0, leaf_texture="procedural", **FAST)
+    assert plain.foliage.uv is None
+    # the front view shows the photo's crown: structurally closer to the photo than one colour a card
+    assert res.metrics["front_ssim"] > plain.metrics["front_ssim"] + 0.1
+    with pytest.raises(InputError, match="leaf_texture"):
+        reconstruct(SAMPLE, leaf_texture="bark")

@@ -145,8 +145,8 @@ def reconstruct(
                                              "envelope needles for --crown conical, learned the species'."),
     texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
     leaf_texture: Optional[LeafTexture] = typer.Option(
-        None, "--leaf-texture", help="envelope: leaf cards wear the photo's own crown ('photo', default) or a drawn "
-                                     "cluster tinted with its colours ('procedural')."),
+        None, "--leaf-texture", help="envelope, abs: leaf cards wear the photo's own crown ('photo', default) or a "
+                                     "drawn cluster (abs: leaf) tinted with its colours ('procedural')."),
     profile: Optional[Profile] = typer.Option(
         None, "--profile", help="envelope: crown side 'rounded' (default) or 'thin-plate' (paper's depth, deepest "
                                 "where the front is widest)."),
@@ -174,7 +174,8 @@ def reconstruct(
         typer.echo("error: --candidates works with --method abs", err=True)
         raise typer.Exit(2)
     if method is Method.abs:
-        not_abs = given + (["--foliage"] if foliage is not FoliageKind.auto else [])
+        not_abs = [g for g in given if g != "--leaf-texture"]
+        not_abs += ["--foliage"] if foliage is not FoliageKind.auto else []
         if not_abs:
             typer.echo(f"error: {', '.join(not_abs)}: not an option of --method abs", err=True)
             raise typer.Exit(2)
@@ -185,7 +186,7 @@ def reconstruct(
                       inputs=(photo, ("--mask", mask)), candidates=24 if candidates is None else candidates,
                       tree_height=10.0 if height is None else height,
                       segmenter=(segmenter or SegmenterName.classical).value, stages=STAGES,
-                      texture_size=texture_size)
+                      texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
     elif method is Method.learned:
         if given:
             typer.echo(f"error: {', '.join(given)} work{'s' if len(given) == 1 else ''} with --method envelope",

@@ -71,21 +71,6 @@ def _trunk_nodes_along(pts: np.ndarray, seg_len: float) -> np.ndarray:
     return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
 
 
-def _face_camera(foliage: Foliage, cam: Camera, which: np.ndarray, rng, scatter: float = 0.5) -> Foliage:
-    """``foliage`` with the cards ``which`` turned to face the camera, give or take ``scatter``.
-
-    A photo-textured card seen by the camera shows the photo where it projects; facing the
-    camera it shows that patch unstretched and lit evenly (measured on real photos: front SSIM
-    +0.12, silhouette error -0.5 points, against cards facing out of the crown).
-    """
-    to_cam = np.asarray(cam.position, np.float64) - foliage.positions
-    to_cam /= np.maximum(np.linalg.norm(to_cam, axis=1, keepdims=True), 1e-12)
-    turned = to_cam + scatter * rng.normal(size=to_cam.shape) / math.sqrt(3.0)
-    turned /= np.maximum(np.linalg.norm(turned, axis=1, keepdims=True), 1e-12)
-    normals = np.where(np.asarray(which, bool)[:, None], turned, foliage.normals)
-    return Foliage(foliage.positions, normals, foliage.up, foliage.size, foliage.color, foliage.node)
-
-
 _KERNELS = {  # the compiled kernels this route calls from Python (their callees compile into them)
     "growth/_kernels.py": {"pipe_accumulate", "main_child_orders"},
     "growth/_leaf_kernels.py": {"nearest_points", "orient_cards", "subtree_tip_counts"},
@@ -259,7 +244,9 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             if cfg.leaf_texture == "procedural":  # the photo is the texture otherwise (mesh stage)
                 foliage = color_leaves(foliage, uvz[:, :2], visible, image, leaf_mask, shade=shade, seed=rng)
             else:  # photo tiles: the cards the camera sees face it, so each shows its patch unstretched
-                foliage = _face_camera(foliage, cam, visible, rng)
+                from treeform.crown.photo_leaves import face_camera
+
+                foliage = face_camera(foliage, cam, visible, rng)
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
         from treeform.geometry.textures import bark_normals, tint_texture

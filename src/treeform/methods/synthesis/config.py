@@ -64,6 +64,10 @@ class SynthesisConfig:
     """Level of detail: 'low' (20k triangles), 'medium' (60k), 'high' (200k), 'full' (no bound)."""
     texture_size: int | None = None
     """Bark texture edge N in texels (leaves get N/2); None: from the tree's size."""
+    leaf_texture: str = "photo"
+    """Leaf cards' texture: 'photo' (each card a tile of the photo's crown as the camera sees
+    it, the cards the camera sees turned toward it; :func:`treeform.crown.photo_leaf_atlas`) or
+    'procedural' (Bézier-outlined leaves, one photo colour per card)."""
 
     def validate(self) -> "SynthesisConfig":
         if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
@@ -85,6 +89,7 @@ class SynthesisConfig:
         from treeform.geometry import LOD_PRESETS
 
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))
+        check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
         if self.texture_size is not None:
             check_int(self.texture_size, "texture_size", 16, 8192)
         return self

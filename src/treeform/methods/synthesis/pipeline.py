@@ -118,6 +118,36 @@ def foliage_reach(sk2d, crown_mask: np.ndarray) -> list:
     return out
 
 
+def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray, mpp: float):
+    """Which cards the photo's camera sees, and a shade for those it does not (§3.5's revolved crown).
+
+    The crown is the silhouette revolved about each row's centre, so at pixel (u, v) its front
+    lies ``sqrt(r_v**2 - (u - c_v)**2)`` in front of the axis (r_v, c_v: the row's half-width and
+    centre). A card projecting onto the mask is visible when it lies within a band behind that
+    front (twice its size, or 30 % of the front's depth); the others take a shade from 0.55 at
+    the back to 1 at the front, like the envelope route's cards deep in the crown.
+
+    Returns
+    -------
+    visible : ndarray (M,) bool
+    shade : ndarray (M,) float in [0.55, 1]
+    """
+    h, w = mask.shape
+    rows = mask.any(1)
+    left = np.where(rows, mask.argmax(1), 0)
+    right = np.where(rows, w - 1 - mask[:, ::-1].argmax(1), 0)
+    centre, half = 0.5 * (left + right), np.maximum(0.5 * (right - left + 1), 1.0)
+    v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, h - 1)
+    dx = uvz[:, 0] - centre[v]
+    front = np.sqrt(np.maximum(half[v] ** 2 - dx ** 2, 0.0)) * mpp
+    z = foliage.positions[:, 2]
+    band = np.maximum(2.0 * foliage.size, 0.3 * front)
+    visible = inside & (z >= front - band)
+    depth = half[v] * mpp
+    shade = np.where(visible, 1.0, 0.55 + 0.45 * np.clip((z + depth) / np.maximum(2 * depth, 1e-9), 0.0, 1.0))
+    return visible, shade
+
+
 def row_half_widths(mask: np.ndarray) -> np.ndarray:
     """(H,) half of each row's extent in ``mask`` (pixels), the max over a window of 2 % of the
     mask's height (0 for empty rows): the depth the revolved crown may have at that row."""
@@ -326,17 +356,39 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                                             trunk_radius=trunk_radius)
         skeleton.meta.update({"method": "abs", "seed": cfg.seed, "species": species,
                               "source": Path(ph.source).name if ph.source else None, "n_leaves": len(foliage)})
-        if len(foliage):  # leaf colours from the photo where a card projects onto the crown
+        photo_leaves = cfg.leaf_texture == "photo" and len(foliage) > 0
+        if len(foliage):
             uvz = cam.project(foliage.positions)
-            visible = _inside_mask(foliage.positions, cam, tree_mask)
-            foliage = color_leaves(foliage, uvz[:, :2], visible, image, seg.foliage_mask if seg.foliage_mask.any()
-                                   else tree_mask, seed=cfg.seed)
+            inside = _inside_mask(foliage.positions, cam, tree_mask)
+            visible, shade = _front_cards(foliage, uvz, inside, tree_mask, mpp)
+            if photo_leaves:  # the cards the camera sees face it: each shows its patch of the photo unstretched
+                from treeform.crown.photo_leaves import face_camera
+
+                foliage = face_camera(foliage, cam, visible, cfg.seed).with_colors(np.ones((len(foliage), 3)))
+            else:  # leaf colours from the photo where a card projects onto the crown
+                foliage = color_leaves(foliage, uvz[:, :2], inside, image,
+                                       seg.foliage_mask if seg.foliage_mask.any() else tree_mask, seed=cfg.seed)
         smooth = bspline_skeleton(skeleton, samples_per_segment=2)
         bark_tex, _ = tree_textures(smooth, foliage, texture_size=cfg.texture_size, seed=cfg.seed)
         bark_normal = bark_normals(bark_tex, seed=cfg.seed)
         if seg.wood_mask.sum() > 20:
             bark_tex = tint_texture(bark_tex, np.median(image[seg.wood_mask], axis=0))
-        leaf_tex = leaf_texture(256, seed=cfg.seed, outline="bezier")
+        if photo_leaves:
+            import scipy.ndimage as ndi
+
+            from treeform.crown.photo_leaves import photo_leaf_atlas
+            from treeform.segment.matting import sky_gaps
+
+            from treeform.crown.layout import trunk_pixels
+
+            # the tree but its trunk (branches seen among the leaves belong to the crown's look), less
+            # the sky seen through the crown, softened by a pixel
+            leafy = tree_mask & ~trunk_pixels(seg, layout)
+            alpha = ndi.gaussian_filter((leafy & ~sky_gaps(image, seg, ratio=3.0)) * seg.alpha, 0.6)
+            leaf_tex, foliage = photo_leaf_atlas(foliage, cam, image, alpha, visible=visible, shade=shade,
+                                                 seed=cfg.seed)
+        else:
+            leaf_tex = leaf_texture(256, seed=cfg.seed, outline="bezier")
         mesh = tree_mesh(smooth, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex,
                          bark_texture=bark_tex, bark_normal=bark_normal, seed=cfg.seed)
     with timer.stage("render"):
