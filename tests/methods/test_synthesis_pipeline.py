@@ -64,6 +64,7 @@ def test_tree_matches_the_photo_and_is_3d(run):
     assert abs(sk.positions[0, 1]) < 1e-6 and 7.0 < sk.positions[:, 1].max() < 13.0
     assert np.ptp(sk.positions[:, 2]) > 0.2 * np.ptp(sk.positions[:, 0])  # branches leave the image plane
     assert len(res.foliage) > 100 and np.all(res.foliage.node < sk.n_nodes)
+    assert sk.positions[:, 1].min() >= 0.0 and res.foliage.positions[:, 1].min() >= 0.0  # nothing under the ground
 
 
 def test_same_seed_same_tree(run):
@@ -201,3 +202,14 @@ def test_photo_textured_leaves_look_like_the_photo(run, gl):
     assert res.metrics["front_ssim"] > plain.metrics["front_ssim"] + 0.1
     with pytest.raises(InputError, match="leaf_texture"):
         reconstruct(SAMPLE, leaf_texture="bark")
+
+
+def test_nothing_grows_under_the_ground(gl):
+    # a low crown whose L-system twigs hung below the trunk's base (the eval's synthetic case 16:
+    # 30 nodes up to 15 cm under the ground, rejected by the RBV of the evaluation)
+    from treeform.evaluation.cases import case_names, load_case
+
+    case = load_case(case_names("synthetic:17", seed=0)[16])
+    res = reconstruct(case.image, seed=0, **{**FAST, "species": None, "max_size": 640})
+    base = res.skeleton.positions[0, 1]
+    assert res.skeleton.positions[:, 1].min() >= base and res.foliage.positions[:, 1].min() >= base

@@ -221,12 +221,19 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
                            trunk_radius=trunk_radius,
                            defines={"density": density, "spread": proposal.spread, "leaf_size": leaf_size})
     skeleton, foliage = grown.skeleton, grown.foliage
-    if edge_distance is not None:  # grown wood leaving the silhouette or the revolved crown goes, with its subtree
-        inside = _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound) > 0
+    # grown wood below the ground (twigs of a low crown hanging behind the trunk) goes, with its
+    # subtree, and so does wood leaving the silhouette or the revolved crown
+    ground = float(skeleton.positions[0, 1])
+    inside = skeleton.positions[:, 1] >= ground
+    if edge_distance is not None:
+        inside &= _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound) > 0
+    if not inside.all():
         skeleton, new = skeleton.prune(grown.given | inside)
         if len(foliage):
             foliage = foliage.subset(np.flatnonzero(new[foliage.node] >= 0))
             foliage.node = new[foliage.node]
+    if len(foliage) and (foliage.positions[:, 1] < ground).any():
+        foliage = foliage.subset(np.flatnonzero(foliage.positions[:, 1] >= ground))
     if edge_distance is not None and len(foliage):
         d = _fits(foliage.positions, camera, edge_distance, base, mpp, depth_bound)
         keep = d > 0
