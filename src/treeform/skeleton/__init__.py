@@ -16,7 +16,8 @@ from treeform.skeleton.depth import lift_to_3d, revolved_radius, skeleton_hull, 
 from treeform.skeleton.draw import draw_skeleton
 from treeform.skeleton.field import force_field
 from treeform.skeleton.foliage import Skeleton2D, foliage_skeleton
-from treeform.skeleton.wood import WOOD_VISIBLE, wood_fraction, wood_skeleton
+from treeform.skeleton.wood import WOOD_VISIBLE, wood_fraction, wood_skeleton, wood_visible
 
 __all__ = ["force_field", "dce", "Skeleton2D", "foliage_skeleton", "lift_to_3d", "draw_skeleton",
-           "skeleton_hull", "revolved_radius", "touches_hull", "wood_skeleton", "wood_fraction", "WOOD_VISIBLE"]
+           "skeleton_hull", "revolved_radius", "touches_hull", "wood_skeleton", "wood_fraction", "wood_visible",
+           "WOOD_VISIBLE"]

@@ -28,7 +28,7 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.skeleton.field import check_mask, work_scale
 from treeform.skeleton.foliage import MIN_PIXELS, Skeleton2D
 
-__all__ = ["wood_skeleton", "wood_fraction", "WOOD_VISIBLE"]
+__all__ = ["wood_skeleton", "wood_fraction", "wood_visible", "WOOD_VISIBLE"]
 
 WOOD_VISIBLE = 0.05
 """Share of the tree's pixels that must be wood for its branches to count as visible: the
@@ -59,6 +59,11 @@ def wood_fraction(mask, wood) -> float:
     w = check_mask(wood, "wood")
     n = int(m.sum())
     return float((w & m).sum()) / n if n else 0.0
+
+
+def wood_visible(mask, wood) -> bool:
+    """Whether the tree shows its branches: at least :data:`WOOD_VISIBLE` of its pixels are wood."""
+    return wood_fraction(mask, wood) >= WOOD_VISIBLE
 
 
 def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 400, foliage_cost: float = 6.0,

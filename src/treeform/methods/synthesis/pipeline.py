@@ -132,10 +132,8 @@ def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray,
     visible : ndarray (M,) bool
     shade : ndarray (M,) float in [0.55, 1]
     """
-    h, w = mask.shape
-    rows = mask.any(1)
-    left = np.where(rows, mask.argmax(1), 0)
-    right = np.where(rows, w - 1 - mask[:, ::-1].argmax(1), 0)
+    h = mask.shape[0]
+    rows, left, right = _row_extents(mask)
     centre, half = 0.5 * (left + right), np.maximum(0.5 * (right - left + 1), 1.0)
     v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, h - 1)
     dx = uvz[:, 0] - centre[v]
@@ -148,14 +146,20 @@ def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray,
     return visible, shade
 
 
+def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(H,) each row's occupancy, leftmost and rightmost mask column (0 for empty rows)."""
+    rows = mask.any(1)
+    left = np.where(rows, mask.argmax(1), 0)
+    right = np.where(rows, mask.shape[1] - 1 - mask[:, ::-1].argmax(1), 0)
+    return rows, left, right
+
+
 def row_half_widths(mask: np.ndarray) -> np.ndarray:
     """(H,) half of each row's extent in ``mask`` (pixels), the max over a window of 2 % of the
     mask's height (0 for empty rows): the depth the revolved crown may have at that row."""
     import scipy.ndimage as ndi
 
-    rows = mask.any(1)
-    left = np.where(rows, mask.argmax(1), 0)
-    right = np.where(rows, mask.shape[1] - 1 - mask[:, ::-1].argmax(1), 0)
+    rows, left, right = _row_extents(mask)
     hw = np.where(rows, 0.5 * (right - left + 1), 0.0)
     ys = np.flatnonzero(rows)
     win = max(1, int(0.02 * (np.ptp(ys) + 1))) if len(ys) else 1
@@ -297,10 +301,10 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
     cam, mpp = photo_camera(width_px, height_px, layout, cfg.tree_height, cfg.fov_y)
     from treeform.methods.synthesis.search import SilhouetteScorer, best_so_far, choose, prior, propose, score
 
-    from treeform.skeleton import WOOD_VISIBLE, wood_fraction
+    from treeform.skeleton import wood_visible
 
-    wood_visible = wood_fraction(tree_mask, seg.wood_mask) >= WOOD_VISIBLE
-    proposals = propose(cfg.candidates, species, n_branches=cfg.n_branches, seed=cfg.seed, wood=wood_visible)
+    shows_wood = wood_visible(tree_mask, seg.wood_mask)
+    proposals = propose(cfg.candidates, species, n_branches=cfg.n_branches, seed=cfg.seed, wood=shows_wood)
     sk_cache: dict = {}
     with timer.stage("skeleton"):
         from treeform.skeleton import foliage_skeleton, wood_skeleton
@@ -414,7 +418,7 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
             "n_branches": chosen.n_branches,
             "n_first_order": int(sk2d.meta["n_first_order"]),
             "skeleton_source": chosen.skeleton,
-            "wood_visible": bool(wood_visible),
+            "wood_visible": bool(shows_wood),
             "candidates": candidates,
             "candidate_curve": [round(e, 6) for e in best_so_far(errors)],
             "search_error_first": errors[0],
@@ -502,7 +506,7 @@ def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, s
     from treeform.io.images import write_png
     from treeform.io.outputs import check_out_file
     from treeform.methods._single_photo import load_photo, segment_or_mask
-    from treeform.skeleton import WOOD_VISIBLE, draw_skeleton, foliage_skeleton, wood_fraction, wood_skeleton
+    from treeform.skeleton import draw_skeleton, foliage_skeleton, wood_skeleton, wood_visible
 
     check_int(n_branches, "n_branches", 1, 32)
     check_int(levels, "levels", 1, 3)
@@ -518,7 +522,7 @@ def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, s
     with timer.stage("skeleton"):
         trunk = np.asarray(layout.trunk_path, np.float64)
         if source == "auto":
-            source = "wood" if wood_fraction(seg.tree_mask, seg.wood_mask) >= WOOD_VISIBLE else "foliage"
+            source = "wood" if wood_visible(seg.tree_mask, seg.wood_mask) else "foliage"
         if source == "wood":
             sk = wood_skeleton(seg.tree_mask, seg.wood_mask, trunk=trunk, levels=levels)
         else:
