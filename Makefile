@@ -45,7 +45,9 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_peers.py
 	$(PY) benchmarks/bench_eval.py
 
-# the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill)
+# the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill).
+# The segmenter trains in two stages: from scratch on synthetic / cut-out scenes, then fine-tuned with sharp
+# real photos whose main tree the colour rules pseudo-label (--photo-trees).
 DATA := out/data
 RUNS := out/weights
 weights: $(STAMP) sysdeps
@@ -53,8 +55,9 @@ weights: $(STAMP) sysdeps
 	mkdir -p $(DATA) $(RUNS)
 	$(VENV)/bin/treeform dataset generate --n 2400 --out $(DATA)/train --seed 1 --shard-size 200
 	$(VENV)/bin/treeform dataset generate --n 400 --out $(DATA)/test --seed 2 --shard-size 200
-	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --photos ../shared/data/photos --out $(RUNS)/seg
-	cp $(RUNS)/seg/model.onnx src/treeform/learn/weights/seg.onnx
+	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --photos ../shared/data/photos --out $(RUNS)/seg --fine-stride 4 --photo-trees 0 --noise 0
+	$(VENV)/bin/treeform train seg --data $(DATA)/train --test-data $(DATA)/test --cutouts ../shared/data/billboards --photos ../shared/data/photos --out $(RUNS)/seg_ft --fine-stride 4 --photo-trees 0.15 --init $(RUNS)/seg/model.onnx --lr 1e-3 --steps 2400 --workers 1
+	cp $(RUNS)/seg_ft/model.onnx src/treeform/learn/weights/seg.onnx
 	$(VENV)/bin/treeform train species --data $(DATA)/train --test-data $(DATA)/test --seg-weights src/treeform/learn/weights/seg.onnx --out $(RUNS)/species
 	cp $(RUNS)/species/model.onnx src/treeform/learn/weights/species.onnx
 	$(VENV)/bin/treeform train rbv --data $(DATA)/train --test-data $(DATA)/test --seg-weights src/treeform/learn/weights/seg.onnx --out $(RUNS)/rbv

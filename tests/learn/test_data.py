@@ -73,3 +73,57 @@ def test_rounds_composed_by_worker_processes_are_the_rounds_composed_in_line():
         assert not np.array_equal(inline.get(0)[0], inline.get(1)[0])
     finally:
         ahead.close()
+
+
+def test_a_photo_is_pseudo_labelled_tree_inside_background_far_out_and_unsure_between():
+    from pathlib import Path
+
+    from PIL import Image
+
+    from treeform.dataset.scenes import TREE_ANY, UNSURE, photo_pseudo_labels, photo_scene
+    from treeform.segment import segment_tree
+
+    sample = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    photo = np.asarray(Image.open(sample).convert("RGB").resize((240, 320)))
+    lab = photo_pseudo_labels(photo)
+    assert lab.shape == photo.shape[:2] and set(np.unique(lab)) == {0, TREE_ANY, UNSURE}
+    tree = segment_tree(photo, seed=0).tree_mask
+    assert tree[lab == TREE_ANY].all()  # the tree label lies inside the rules' tree ...
+    assert not tree[lab == 0].any()  # ... the background label outside it, with a band between
+    assert 0.2 < (lab == TREE_ANY).sum() / tree.sum() < 1.0
+    img, sl = photo_scene(photo, lab, np.random.default_rng(0), size=64)
+    assert img.shape == (64, 64, 3) and img.dtype == np.uint8 and sl.shape == (64, 64)
+    assert set(np.unique(sl)) <= {0, TREE_ANY, UNSURE}
+    # no tree in a flat grey picture: nothing to label
+    assert photo_pseudo_labels(np.full((64, 64, 3), 128, np.uint8)) is None
+
+
+def test_photo_tree_scenes_join_the_stream_reproducibly():
+    from treeform.learn.data import SceneStream
+
+    rng = np.random.default_rng(1)
+    photo = rng.integers(0, 256, (80, 60, 3)).astype(np.uint8)
+    lab = np.zeros((80, 60), np.uint8)
+    lab[20:60, 15:45] = 3
+    lab[15:20, 15:45] = 255
+
+    def stream():
+        return SceneStream(_sprites(), size=48, seed=2, pool=8, photo_trees=[(photo, lab)], photo_tree_fraction=0.5)
+
+    a, b = stream().chunk(0, 12), stream().chunk(0, 12)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert (a[1] == 255).any()  # some scenes are the photo, with its no-loss band
+    plain = SceneStream(_sprites(), size=48, seed=2, pool=8).chunk(0, 12)
+    assert not (plain[1] == 255).any()
+
+
+def test_noise_negatives_are_all_background_and_vary():
+    from treeform.dataset.scenes import noise_image
+    from treeform.learn.data import SceneStream
+
+    rng = np.random.default_rng(0)
+    pics = [noise_image(rng, size=32) for _ in range(6)]
+    assert all(p.shape == (32, 32, 3) and p.dtype == np.uint8 for p in pics)
+    assert len({round(float(p.mean()), 1) for p in pics}) > 3  # means and contrasts differ
+    imgs, labs = SceneStream(_sprites(), size=32, seed=1, pool=8, noise_fraction=1.0).chunk(0, 4)
+    assert not labs.any() and imgs.std() > 10

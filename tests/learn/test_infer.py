@@ -135,3 +135,31 @@ def test_inference_path_imports_neither_torch_nor_training_code():
             "assert not bad, bad\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_matting_redraws_the_edge_and_opens_blue_sky_gaps(celtis):
+    from treeform._shared.errors import InputError
+    from treeform.segment.matting import blue_sky
+
+    guided = segment_tree_learned(celtis, refine="guided").tree_mask
+    matted = segment_tree_learned(celtis, refine="matting").tree_mask
+    plain = segment_tree_learned(celtis, refine="none").tree_mask
+    sky = blue_sky(celtis)
+    assert sky[:40].mean() > 0.5  # the sample's sky is blue
+    # the same tree ...
+    inter = (guided & matted).sum()
+    assert inter / (guided | matted).sum() > 0.8 and inter / plain.sum() > 0.8
+    # ... with the sky seen through the crown taken out (hardly a blue pixel left in the tree)
+    assert (matted & sky).sum() <= (guided & sky).sum()
+    assert (matted & sky).sum() < 0.005 * matted.sum()
+    with pytest.raises(InputError, match="refine"):
+        segment_tree_learned(celtis, refine="crf")
+
+
+def test_blue_sky_needs_a_blue_sky():
+    from treeform.segment.matting import blue_sky
+
+    grey = np.full((40, 40, 3), 200, np.uint8)  # an overcast sky ...
+    grey[20:] = (60, 120, 50)
+    grey[25:30, 5:10] = (40, 70, 200)  # ... and a blue car below
+    assert not blue_sky(grey).any()

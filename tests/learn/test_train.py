@@ -104,3 +104,40 @@ def test_segnet_rejects_an_unknown_stride():
 
     with pytest.raises(ValueError, match="fine_stride"):
         SegNet(8, fine_stride=3)
+
+
+def test_onnx_weights_load_back_into_the_network_for_fine_tuning(tmp_path):
+    import onnxruntime as ort
+
+    from treeform._shared.errors import InputError
+    from treeform.learn.export import export_onnx, load_onnx_into
+    from treeform.learn.nets.segnet import SegNet
+
+    torch.manual_seed(0)
+    src = SegNet(8, fine_stride=4)
+    src.train()
+    with torch.no_grad():  # give BatchNorm non-trivial statistics, so that folding matters
+        for _ in range(3):
+            src(torch.rand(4, 3, 64, 64) * 2)
+    path = export_onnx(src.eval(), tmp_path / "seg.onnx", kind="seg", example_shape=(1, 3, 64, 64))
+    dst = SegNet(8, fine_stride=4)
+    load_onnx_into(dst, path, calibrate=torch.rand(4, 3, 64, 64))
+    x = torch.rand(1, 3, 48, 64)
+    with torch.no_grad():
+        ours = dst.eval()(x).numpy()
+    ref = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).run(None, {"image": x.numpy()})[0]
+    assert np.abs(ours - ref).max() < 1e-4 * max(1.0, np.abs(ref).max())
+    with pytest.raises(InputError, match="shape|no weights"):
+        load_onnx_into(SegNet(16, fine_stride=4), path, calibrate=torch.rand(2, 3, 64, 64))
+
+
+def test_unsure_pixels_carry_no_loss():
+    from treeform.learn.train import _partial_ce
+
+    torch.manual_seed(0)
+    logits = torch.randn(2, 3, 8, 8)
+    labels = torch.randint(0, 4, (2, 8, 8), dtype=torch.uint8)
+    labels[:, :4] = 255
+    other = logits.clone()
+    other[:, :, :4] = torch.randn(2, 3, 4, 8) * 5  # anything where the labels are unsure
+    assert torch.allclose(_partial_ce(logits, labels, 3.0), _partial_ce(other, labels, 3.0))

@@ -27,14 +27,25 @@ def seg_cmd(
     device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto (cuda when torch sees one)."),
     workers: int = typer.Option(0, "--workers", help="Processes composing scenes ahead of the optimiser "
                                 "(0 = in line; same scenes either way)."),
+    init: Optional[Path] = typer.Option(None, "--init", help="Start from these ONNX weights (same architecture): "
+                                        "fine-tuning, e.g. of the shipped seg.onnx."),
+    lr: float = typer.Option(3e-3, "--lr", help="Peak learning rate (lower when fine-tuning, e.g. 1e-3)."),
+    photo_trees: float = typer.Option(0.15, "--photo-trees", help="Share of scenes that are sharp crops of the "
+                                      "--photos, their main tree pseudo-labelled by the colour rules (0 = none)."),
+    noise: float = typer.Option(0.03, "--noise", help="Share of scenes that are random noise, all background."),
+    fine_stride: int = typer.Option(1, "--fine-stride", help="Resolution of the logits: 1 (sub-pixel head) or 4 "
+                                    "(plain DeepLab-V3+, the shipped weights)."),
 ):
     """Segmentation network (background / foliage / wood); resumes from OUT/checkpoint.pt."""
     from treeform.cli.progress import TrainProgress
     from treeform.learn.train import train_seg
 
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
-                seed=seed, device=device, workers=workers, display=TrainProgress("seg"),
-                inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos)))
+                seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
+                fine_stride=fine_stride, photo_tree_fraction=photo_trees, noise_negatives=noise,
+                display=TrainProgress("seg"),
+                inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),
+                        ("--init", init)))
     r, c = m.get("renders"), m.get("cutouts")
     if r:
         typer.echo(f"test renders: mean IoU {100 * r['mean_iou']:.1f} % "

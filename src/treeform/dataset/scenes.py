@@ -42,10 +42,14 @@ import numpy as np
 from treeform._shared.errors import InputError
 
 __all__ = ["Sprite", "TREE_ANY", "SEASONS", "compose_scene", "load_cutouts", "paste_on_photo", "sprite_from_render",
-           "recolor_season", "cutout_split", "photo_split", "load_photos", "photo_background"]
+           "recolor_season", "cutout_split", "photo_split", "load_photos", "photo_background", "UNSURE",
+           "photo_pseudo_labels", "photo_scene", "camera_effects", "noise_image"]
 
 TREE_ANY = 3
 """Label of a tree pixel whose part (foliage or wood) is unknown."""
+
+UNSURE = 255
+"""Label of a pixel the loss ignores (the band between a photo's pseudo-labelled tree and background)."""
 
 SEASONS = ("summer", "spring", "yellow", "orange", "red", "purple", "bluegreen", "sparse")
 """Foliage looks drawn by :func:`recolor_season`."""
@@ -160,6 +164,83 @@ def photo_background(photo: np.ndarray, rng, *, size: int, blur: tuple = (2.0, 6
     bg = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
     sigma = rng.uniform(*blur)
     return np.clip(np.rint(cv2.GaussianBlur(bg.astype(np.float32), (0, 0), sigma)), 0, 255).astype(np.uint8)
+
+
+def photo_pseudo_labels(photo: np.ndarray, *, inner: float = 0.02, outer: float = 0.05,
+                        max_side: int = 512) -> np.ndarray | None:
+    """Pseudo-labels of a real photo's main tree for training: tree inside, background far outside.
+
+    The colour rules (:func:`treeform.segment.segment_tree`) find the main tree; its mask
+    eroded by ``inner`` x the long side is :data:`TREE_ANY`, everything farther than
+    ``outer`` x the long side from it is background, the band between is :data:`UNSURE`
+    (no loss). Only real *sharp* tree texture labelled tree teaches a network that a real
+    photographed tree is a tree: otherwise the real photos it sees are all out-of-focus
+    backgrounds, labelled background, and it learns to call real foliage background.
+
+    Returns (H, W) uint8 at the photo's size, or None when the rules find no tree.
+    """
+    from treeform._shared.errors import NoTreeFoundError
+    from treeform.segment.classical import segment_tree
+
+    img = np.asarray(photo)
+    H, W = img.shape[:2]
+    s = min(1.0, max_side / max(H, W))
+    small = img if s == 1.0 else cv2.resize(img, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
+    try:
+        tree = segment_tree(small, seed=0).tree_mask.astype(np.uint8)
+    except NoTreeFoundError:
+        return None
+    side = max(small.shape[:2])
+
+    def disc(r):
+        r = max(1, int(round(r * side)))
+        return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+    lab = np.full(tree.shape, UNSURE, np.uint8)
+    lab[cv2.dilate(tree, disc(outer)) == 0] = 0
+    lab[cv2.erode(tree, disc(inner)) > 0] = TREE_ANY
+    if s < 1.0:
+        lab = cv2.resize(lab, (W, H), interpolation=cv2.INTER_NEAREST)
+    return lab
+
+
+def noise_image(rng, *, size: int) -> np.ndarray:
+    """A picture of nothing: random noise (uniform or Gaussian, per pixel, blurred or blocky, grey or
+    colour, any mean and contrast), (size, size, 3) uint8. A negative for the segmenter: noise
+    has texture everywhere, like foliage, but no tree.
+    """
+    S = int(size)
+    cells = S if rng.random() < 0.5 else int(rng.integers(4, max(5, S // 2)))
+    shape = (cells, cells, 3 if rng.random() < 0.6 else 1)
+    z = rng.random(shape) if rng.random() < 0.5 else np.clip(0.5 + rng.normal(0, 0.25, shape), 0, 1)
+    z = z.astype(np.float32)
+    if cells != S:
+        interp = cv2.INTER_NEAREST if rng.random() < 0.5 else cv2.INTER_LINEAR
+        z = cv2.resize(z, (S, S), interpolation=interp).reshape(S, S, -1)
+    if z.shape[2] == 1:
+        z = np.repeat(z, 3, 2)
+    if rng.random() < 0.3:
+        z = cv2.GaussianBlur(z, (0, 0), rng.uniform(0.5, 3.0))
+    mean, amp = rng.uniform(0.2, 0.8, 3), rng.uniform(0.3, 1.0)
+    return np.clip(np.rint(255 * np.clip(mean + amp * (z - 0.5), 0, 1)), 0, 255).astype(np.uint8)
+
+
+def photo_scene(photo: np.ndarray, labels: np.ndarray, rng, *, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """A training scene from a real photo and its :func:`photo_pseudo_labels`: a random crop.
+
+    The crop (60-100 % of the short side, anywhere) is scaled to ``size``; the labels follow
+    by nearest neighbour (the :data:`UNSURE` band absorbs the edge). Camera effects are the
+    caller's. Returns (size, size, 3) uint8 and (size, size) uint8.
+    """
+    S = int(size)
+    H, W = photo.shape[:2]
+    side = int(min(H, W) * rng.uniform(0.6, 1.0))
+    y, x = int(rng.integers(0, H - side + 1)), int(rng.integers(0, W - side + 1))
+    img = cv2.resize(np.ascontiguousarray(photo[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_AREA)
+    lab = cv2.resize(np.ascontiguousarray(labels[y:y + side, x:x + side]), (S, S), interpolation=cv2.INTER_NEAREST)
+    if rng.random() < 0.5:
+        img, lab = img[:, ::-1], lab[:, ::-1]
+    return np.ascontiguousarray(img), np.ascontiguousarray(lab)
 
 
 def load_cutouts(folder, *, split: str | None = None, recursive: bool = True) -> list[Sprite]:
@@ -386,6 +467,24 @@ def _clutter(img: np.ndarray, horizon: int, rng) -> None:
             img[max(0, y - bh):y] = img[max(0, y - bh):y] * 0.3 + col * 0.7
 
 
+def camera_effects(img: np.ndarray, sky_col, rng) -> np.ndarray:
+    """A float RGB image in [0, 1] as a camera might have taken it: haze, defocus, exposure,
+    white balance, gamma, noise and JPEG artefacts (each drawn from ``rng``). Returns uint8."""
+    if rng.random() < 0.3:
+        hz = rng.uniform(0.05, 0.3)
+        img = img * (1 - hz) + hz * sky_col
+    if rng.random() < 0.3:
+        img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.4, 1.3))
+    img = img * rng.uniform(0.55, 1.5) * np.clip(rng.normal(1.0, 0.08, 3), 0.75, 1.25)
+    img = np.clip(img, 0, 1) ** rng.uniform(0.75, 1.35)
+    img = img * 255.0 + rng.normal(0, rng.uniform(0, 5), img.shape)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if rng.random() < 0.6:
+        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(25, 95))])
+        out = np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
+    return out
+
+
 def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int = 256,
                   background: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One randomised training scene: the main ``tree`` over clutter and other trees.
@@ -485,18 +584,7 @@ def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int =
                rng.uniform(0.85, 1.05) * S, haze=rng.uniform(0.0, 0.25), haze_col=sky_col)
 
     # -- camera: haze, defocus, exposure, white balance, gamma, noise, JPEG
-    if rng.random() < 0.3:
-        hz = rng.uniform(0.05, 0.3)
-        img = img * (1 - hz) + hz * sky_col
-    if rng.random() < 0.3:
-        img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.4, 1.3))
-    img = img * rng.uniform(0.55, 1.5) * np.clip(rng.normal(1.0, 0.08, 3), 0.75, 1.25)
-    img = np.clip(img, 0, 1) ** rng.uniform(0.75, 1.35)
-    img = img * 255.0 + rng.normal(0, rng.uniform(0, 5), img.shape)
-    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
-    if rng.random() < 0.6:
-        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(25, 95))])
-        out = np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
+    out = camera_effects(img, sky_col, rng)
     return out, lab
 
 

@@ -157,12 +157,22 @@ class SceneStream:
         blurred: a sharp real tree labelled background teaches the network that real trees
         are background (a run with sigma from 1 px missed whole trees on real photos).
     photo_fraction : float
+    photo_trees : list of (ndarray, ndarray), optional
+        Real photos with pseudo-labels (:func:`~treeform.dataset.scenes.photo_pseudo_labels`:
+        0 background, 3 tree, 255 no loss); a share ``photo_tree_fraction`` of the scenes is a
+        crop of one of them (:func:`~treeform.dataset.scenes.photo_scene`) through the same
+        camera effects: real, sharp tree texture labelled tree.
+    photo_tree_fraction : float
+    noise_fraction : float
+        Share of scenes that are random noise (:func:`~treeform.dataset.scenes.noise_image`),
+        all background.
     pool : int
         Procedural backgrounds kept; ``pool // 8`` are redrawn per chunk.
     """
 
     def __init__(self, renders, cutouts=(), *, size: int = 224, seed: int = 0, cutout_fraction: float = 0.35,
-                 negatives: float = 0.08, photos=(), photo_fraction: float = 0.2, pool: int = 256):
+                 negatives: float = 0.08, photos=(), photo_fraction: float = 0.2, photo_trees=(),
+                 photo_tree_fraction: float = 0.0, noise_fraction: float = 0.0, pool: int = 256):
         self.renders, self.cutouts = list(renders), list(cutouts)
         if not self.renders and not self.cutouts:
             raise InputError("no tree sprites to compose scenes from")
@@ -171,6 +181,9 @@ class SceneStream:
         self.negatives = negatives
         self.photos = list(photos)
         self.photo_fraction = photo_fraction if self.photos else 0.0
+        self.photo_trees = list(photo_trees)
+        self.photo_tree_fraction = photo_tree_fraction if self.photo_trees else 0.0
+        self.noise_fraction = float(noise_fraction)
         self.pool_size = int(pool)
         self._pool: list | None = None
 
@@ -181,7 +194,7 @@ class SceneStream:
 
     def chunk(self, r: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Scenes of round ``r``: images (n, S, S, 3) uint8 and labels (n, S, S) uint8."""
-        from treeform.dataset.scenes import compose_scene, photo_background
+        from treeform.dataset.scenes import camera_effects, compose_scene, noise_image, photo_background, photo_scene
 
         # the pool after round r holds backgrounds r*step .. r*step + pool - 1 (deterministic per round)
         step = max(1, self.pool_size // 8)
@@ -196,6 +209,15 @@ class SceneStream:
         imgs = np.empty((n, self.size, self.size, 3), np.uint8)
         labs = np.empty((n, self.size, self.size), np.uint8)
         for i in range(n):
+            if self.photo_tree_fraction and rng.random() < self.photo_tree_fraction:
+                ph, pl = self.photo_trees[int(rng.integers(len(self.photo_trees)))]
+                img, labs[i] = photo_scene(ph, pl, rng, size=self.size)
+                sky = img[: max(2, self.size // 8)].reshape(-1, 3).mean(0) / 255.0
+                imgs[i] = camera_effects(img.astype(np.float32) / 255.0, sky, rng)
+                continue
+            if self.noise_fraction and rng.random() < self.noise_fraction:
+                imgs[i], labs[i] = noise_image(rng, size=self.size), 0
+                continue
             u = rng.random()
             if u < self.negatives:
                 tree = None

@@ -69,6 +69,13 @@ class SegTrainConfig:
     negatives: float = 0.08
     photo_fraction: float = 0.2
     """Share of scenes over an out-of-focus crop of a real photo (when ``photos`` are given)."""
+    photo_tree_fraction: float = 0.15
+    """Share of scenes that are a sharp crop of a real photo, its main tree pseudo-labelled by the
+    colour rules (when ``photos`` are given; :func:`~treeform.dataset.scenes.photo_pseudo_labels`)."""
+    noise_negatives: float = 0.03
+    """Share of scenes that are random noise, all background (noise is texture everywhere, like foliage)."""
+    init: str = ""
+    """ONNX weights of a SegNet of the same shape to start from (fine-tuning), e.g. the shipped seg.onnx."""
     seed: int = 0
     checkpoint_every: int = 100
     threads: int = 0
@@ -86,7 +93,8 @@ class SegTrainConfig:
 
 
 def _partial_ce(logits, labels, wood_weight: float):
-    """Cross-entropy with partial labels: 0/1/2 as usual, 3 = 'foliage or wood' (log of their summed prob)."""
+    """Cross-entropy with partial labels: 0/1/2 as usual, 3 = 'foliage or wood' (log of their summed prob),
+    255 = no loss."""
     torch = _torch()
     logp = torch.log_softmax(logits, 1)
     lab = labels.long()
@@ -95,9 +103,10 @@ def _partial_ce(logits, labels, wood_weight: float):
     nll_any = -torch.logsumexp(logp[:, 1:3], 1)
     nll = torch.where(lab == 3, nll_any, nll)
     w = torch.where(lab == 2, torch.full_like(nll, wood_weight), torch.ones_like(nll))
+    w = torch.where(lab == 255, torch.zeros_like(nll), w)  # UNSURE: no loss
     ce = (nll * w).sum() / w.sum()
     # Dice on wood over the scenes whose parts are known (synthetic renders)
-    known_img = (lab != 3).flatten(1).all(1)
+    known_img = (lab <= 2).flatten(1).all(1)
     if known_img.any():
         p = torch.softmax(logits, 1)[:, 2][known_img]
         t = (lab[known_img] == 2).float()
@@ -131,15 +140,23 @@ def _compose_round(r: int, n: int):
     return _STREAM.chunk(r, n)
 
 
-def _scene_stream(data, cutouts, photos, *, size, seed, cutout_fraction, negatives, photo_fraction):
+def _scene_stream(data, cutouts, photos, *, size, seed, cutout_fraction, negatives, photo_fraction,
+                  photo_tree_fraction=0.0, noise_negatives=0.0):
     """The training :class:`~treeform.learn.data.SceneStream` of ``train_seg`` (also built in each worker)."""
-    from treeform.dataset.scenes import load_photos
+    from treeform.dataset.scenes import load_photos, photo_pseudo_labels
     from treeform.learn.data import SceneStream
 
     renders, cuts = _sprites(data, cutouts, "train")
     bg_photos = load_photos(photos, split="train") if photos is not None else []
+    trees = []
+    if photo_tree_fraction > 0:
+        for ph in bg_photos:
+            lab = photo_pseudo_labels(ph)
+            if lab is not None:
+                trees.append((ph, lab))
     return SceneStream(renders, cuts, size=size, seed=seed, cutout_fraction=cutout_fraction, negatives=negatives,
-                       photos=bg_photos, photo_fraction=photo_fraction)
+                       photos=bg_photos, photo_fraction=photo_fraction, photo_trees=trees,
+                       photo_tree_fraction=photo_tree_fraction, noise_fraction=noise_negatives)
 
 
 class _Rounds:
@@ -198,6 +215,14 @@ def _save_atomic(obj, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def _calibration_batch(make_stream, cfg):
+    """A batch of training scenes (round 10^6, never reached by training) whose activations set the BatchNorm
+    statistics of a network started from folded ONNX weights."""
+    torch = _torch()
+    images, _ = make_stream().chunk(10 ** 6, 32)
+    return torch.from_numpy(images).permute(0, 3, 1, 2).float().div_(255.0)
+
+
 def _lr_at(step: int, total: int, peak: float) -> float:
     warm = max(1, total // 30)
     if step < warm:
@@ -252,10 +277,16 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         torch.set_num_threads(cfg.threads)
     make_stream = functools.partial(_scene_stream, data, cutouts, photos, size=cfg.size, seed=cfg.seed,
                                     cutout_fraction=cfg.cutout_fraction, negatives=cfg.negatives,
-                                    photo_fraction=cfg.photo_fraction)
+                                    photo_fraction=cfg.photo_fraction, photo_tree_fraction=cfg.photo_tree_fraction,
+                                    noise_negatives=cfg.noise_negatives)
     dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
-    model = SegNet(cfg.width, fine_stride=cfg.fine_stride).to(dev)
+    model = SegNet(cfg.width, fine_stride=cfg.fine_stride)
+    if cfg.init:
+        from treeform.learn.export import load_onnx_into
+
+        load_onnx_into(model, cfg.init, calibrate=_calibration_batch(make_stream, cfg))
+    model = model.to(dev)
     if dev.type == "cuda":
         torch.backends.cudnn.benchmark = True
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)

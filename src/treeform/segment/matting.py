@@ -18,6 +18,8 @@ the import logs an INFO notice on the ``treeform.segment.matting`` logger when i
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import os
 import sys
@@ -30,7 +32,8 @@ from treeform._shared.jit import cold_kernels
 from treeform._shared.rng import as_rng
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps", "kernels_to_compile"]
+__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps", "blue_sky",
+           "kernels_to_compile"]
 
 UNKNOWN = 0.5
 
@@ -112,6 +115,24 @@ def _check_seg(segmentation, shape) -> Segmentation:
     if not segmentation.tree_mask.any():
         raise InputError("segmentation: the tree mask is empty")
     return segmentation
+
+
+def blue_sky(image: np.ndarray, *, min_share: float = 0.1) -> np.ndarray:
+    """(H, W) bool: clearly blue, bright pixels, when the photo has a blue sky at all.
+
+    A pixel is sky-blue when its Lab b* is below -15 (OpenCV's 8-bit scale, 128 = neutral)
+    and its lightness above 50 / 255 (a deep blue sky is dark): bluer than any foliage, bark or blue-green conifer
+    needles. The photo has a blue sky when such pixels make up ``min_share`` of its top
+    fifth; otherwise nothing is returned (a blue car or house front alone is not sky).
+
+    >>> img = np.zeros((20, 20, 3), np.uint8); img[:] = (40, 110, 40); img[:5] = (90, 150, 230)
+    >>> int(blue_sky(img).sum())
+    100
+    """
+    lab = cv2.cvtColor(np.asarray(image), cv2.COLOR_RGB2Lab)
+    blue = (lab[..., 2].astype(np.int16) - 128 < -15) & (lab[..., 0] > 50)
+    top = blue[: max(1, blue.shape[0] // 5)]
+    return blue if top.mean() >= min_share else np.zeros_like(blue)
 
 
 def sky_gaps(image, segmentation, *, ratio: float = 10.0) -> np.ndarray:
@@ -261,8 +282,11 @@ def alpha_matting(image, trimap, *, max_side: int = 800) -> np.ndarray:
         tr_s = cv2.resize(tri, size, interpolation=cv2.INTER_NEAREST)
     else:
         im_s, tr_s = img, tri
-    alpha = estimate_alpha_cf(im_s.astype(np.float64) / 255.0, tr_s,
-                              cg_kwargs={"maxiter": 2000})
+    # PyMatting prints a "PERFORMANCE WARNING" paragraph to stdout whenever its preconditioner
+    # needs a diagonal shift (it then retries): not for our users' terminals
+    with contextlib.redirect_stdout(io.StringIO()):
+        alpha = estimate_alpha_cf(im_s.astype(np.float64) / 255.0, tr_s,
+                                  cg_kwargs={"maxiter": 2000})
     # solver noise: a faint haze of alpha ~ 0.01 over the background, or holes of 0.99
     alpha = np.clip(alpha, 0.0, 1.0)
     alpha[alpha < 0.02] = 0.0
