@@ -180,7 +180,7 @@ def photo_pseudo_labels(photo: np.ndarray, *, inner: float = 0.02, outer: float 
     Returns (H, W) uint8 at the photo's size, or None when the rules find no tree.
     """
     from treeform._shared.errors import NoTreeFoundError
-    from treeform.segment.classical import segment_tree
+    from treeform.segment.classical import _disc, segment_tree
 
     img = np.asarray(photo)
     H, W = img.shape[:2]
@@ -192,9 +192,8 @@ def photo_pseudo_labels(photo: np.ndarray, *, inner: float = 0.02, outer: float 
         return None
     side = max(small.shape[:2])
 
-    def disc(r):
-        r = max(1, int(round(r * side)))
-        return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    def disc(share):
+        return _disc(max(1, int(round(share * side))))
 
     lab = np.full(tree.shape, UNSURE, np.uint8)
     lab[cv2.dilate(tree, disc(outer)) == 0] = 0

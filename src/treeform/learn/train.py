@@ -171,7 +171,7 @@ class _Rounds:
 
     def __init__(self, make_stream, n: int, workers: int):
         self.n, self.workers = int(n), int(workers)
-        self._pool, self._pending, self.stream = None, {}, None
+        self._pool, self._pending, self.stream, self._last = None, {}, None, None
         if self.workers > 0:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
@@ -182,6 +182,12 @@ class _Rounds:
             self.stream = make_stream()
 
     def get(self, r: int):
+        if self._last is not None and self._last[0] == r:  # asked again (fine-tuning calibrates on round 0)
+            return self._last[1]
+        self._last = (r, self._compose(r))
+        return self._last[1]
+
+    def _compose(self, r: int):
         if self._pool is None:
             return self.stream.chunk(r, self.n)
         for k in list(self._pending):
@@ -213,14 +219,6 @@ def _save_atomic(obj, path: Path) -> None:
     tmp = path.with_name(path.name + ".tmp")
     torch.save(obj, tmp)
     os.replace(tmp, path)
-
-
-def _calibration_batch(make_stream, cfg):
-    """A batch of training scenes (round 10^6, never reached by training) whose activations set the BatchNorm
-    statistics of a network started from folded ONNX weights."""
-    torch = _torch()
-    images, _ = make_stream().chunk(10 ** 6, 32)
-    return torch.from_numpy(images).permute(0, 3, 1, 2).float().div_(255.0)
 
 
 def _lr_at(step: int, total: int, peak: float) -> float:
@@ -281,12 +279,7 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
                                     noise_negatives=cfg.noise_negatives)
     dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
-    model = SegNet(cfg.width, fine_stride=cfg.fine_stride)
-    if cfg.init:
-        from treeform.learn.export import load_onnx_into
-
-        load_onnx_into(model, cfg.init, calibrate=_calibration_batch(make_stream, cfg))
-    model = model.to(dev)
+    model = SegNet(cfg.width, fine_stride=cfg.fine_stride).to(dev)
     if dev.type == "cuda":
         torch.backends.cudnn.benchmark = True
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -307,6 +300,11 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
                                                 indent=2))
     per_round = max(1, cfg.chunk * cfg.repeats // cfg.batch)
     rounds = _Rounds(make_stream, cfg.chunk, cfg.workers)
+    if cfg.init and step == 0:  # fine-tuning: BatchNorm statistics from the first round's scenes
+        from treeform.learn.export import load_onnx_into
+
+        first = rounds.get(0)[0][:32]
+        load_onnx_into(model, cfg.init, calibrate=torch.from_numpy(first).to(dev).permute(0, 3, 1, 2).float() / 255.0)
     try:
         _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_seconds, progress)
     finally:

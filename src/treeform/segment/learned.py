@@ -102,13 +102,11 @@ def _matte_refine(img: np.ndarray, tree: np.ndarray, p_tree: np.ndarray,
     """
     import cv2
 
+    from treeform.segment.matting import _disc as disc
     from treeform.segment.matting import alpha_matting
 
     H, W = tree.shape
     band = max(2, int(round(0.015 * max(H, W))))
-
-    def disc(r):
-        return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
 
     t8 = tree.astype(np.uint8)
     tri = np.zeros((H, W), np.float64)
