@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from treeform.growth.bimodal import (bimodal_grow, clamp_into, half_centroid, mask_markers, orient_scaffold,
-                                     resample_scaffold)
+from treeform.growth.bimodal import (bimodal_grow, clamp_into, half_centroid, local_thickness, mask_markers,
+                                     orient_scaffold, planar_scaffold, resample_scaffold)
 from treeform.growth.phenomenological import grow
 from treeform.growth.species import load_species
 from treeform.structures import Camera, Mesh, RadialBoundingVolume, TreeSkeleton
@@ -55,15 +55,48 @@ def _own_mask(species, seed=1):
     return p, gt, rbv, cam, mask, (base[0], base[1])
 
 
-def test_default_growth_from_own_rbv_and_mask_fills_the_volume_from_inside():
-    p, gt, rbv, cam, mask, base = _own_mask("maple")
+@pytest.mark.parametrize("species", ["maple", "acacia"])
+def test_default_growth_from_own_rbv_and_mask_matches_the_original(species):
+    from treeform.growth.species import load_perception_angle
+    from treeform.metrics import average_branching_angle, biomass
+
+    p, gt, rbv, cam, mask, base = _own_mask(species)
     target = rbv.at_level(4)
-    rec = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal, mask_base=base)
+    kw = dict(mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal, mask_base=base,
+              perception_angle=load_perception_angle(species))
+    rec = bimodal_grow(p, target, **kw)
     k = rec.meta["n_scaffold"]
     assert target.contains(rec.positions[1:k]).mean() > 0.99  # the scaffold stays inside
     got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0, -np.inf]), level=4)
-    assert got.physical_radii.mean() >= 0.7 * target.physical_radii.mean()
-    assert rec.n_nodes > 3 * k  # the crown grew for the species' years, not two
+    assert got.physical_radii.mean() >= 0.9 * target.physical_radii.mean()  # fills the volume
+    assert 0.7 <= average_branching_angle(rec) / average_branching_angle(gt) <= 1.3
+    assert 0.7 <= biomass(rec) / biomass(gt) <= 1.3
+    alone = bimodal_grow(p, target, volume_markers=0, **kw)  # the mask's plane alone fills less
+    got0 = RadialBoundingVolume.from_points(np.maximum(alone.positions, [-np.inf, 0, -np.inf]), level=4)
+    assert got0.physical_radii.mean() < got.physical_radii.mean()
+
+
+def test_a_wide_trunk_is_one_tube_not_a_rope():
+    # a trunk 11 px wide forking into two limbs 5 px wide: one scaffold chain per branch,
+    # with the mask's half-widths (was: parallel 1-px strands, a rope)
+    m = np.zeros((200, 160), bool)
+    m[100:200, 75:86] = True
+    for t in np.linspace(0, 1, 200):
+        for side in (-1, 1):
+            c, r = 80 + side * 55 * t, 100 - 90 * t
+            m[int(r) - 2: int(r) + 3, int(c) - 2: int(c) + 3] = True
+    pts, frame = mask_markers(m, scale=0.01, base=(80.5, 200.0))
+    thick = local_thickness(m)[m]
+    assert abs(np.median(thick[pts[:, 1] < 0.9]) - 6.0) <= 0.6  # (11 + 1) / 2 on the trunk
+    sk = planar_scaffold(pts, segment_length=0.01, kill_distance=np.maximum(0.015, (thick + 0.5) * 0.01),
+                         perception_angle=90.0, root=np.zeros(3))
+    low = 0.2  # 20 px up the trunk
+    p, q = sk.positions[1:], sk.positions[sk.parent[1:]]
+    crossing = ((p[:, 1] - low) * (q[:, 1] - low) <= 0) & (p[:, 1] != q[:, 1])
+    assert crossing.sum() == 1
+    tips = sk.tips()
+    top = sk.positions[tips][sk.positions[tips, 1] > 1.5]
+    assert (top[:, 0] < -0.4).any() and (top[:, 0] > 0.4).any()  # both limbs reach their ends
 
 
 @pytest.mark.parametrize("species", ["maple", "oak"])
@@ -75,7 +108,7 @@ def test_mask_growth_reproduces_the_branch_mask(species):
     # the tracing stage alone: the planar scaffold at pixel spacing, one crown year, not turned
     rec = bimodal_grow(p, rbv.at_level(4), mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal,
                        mask_base=(base[0], base[1]), orient=False, clamp=False, crown_years=1,
-                       spacing=cam.position[2] / cam.focal)
+                       spacing=cam.position[2] / cam.focal, volume_markers=0)
     wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(rec, radial_segments=6)])).mask
     iou = (mask & wood).sum() / (mask | wood).sum()
     assert iou >= 0.6, iou

@@ -48,6 +48,23 @@ def test_space_colonization_bad_arguments():
         space_colonization(np.zeros((3, 3)), np.zeros((1, 3)), influence_radius=-1, kill_distance=1, segment_length=1)
     with pytest.raises(InputError):
         space_colonization(np.zeros((3, 3)), np.zeros((0, 3)), influence_radius=1, kill_distance=1, segment_length=1)
+    with pytest.raises(InputError, match="one per attractor"):
+        space_colonization(np.zeros((3, 3)), np.zeros((1, 3)), influence_radius=1, kill_distance=[1, 1],
+                           segment_length=1)
+
+
+def test_per_attractor_kill_distance():
+    # attractors in a band 1 m wide beside a stem: with each one's kill distance reaching the
+    # band's far edge, one chain up the band removes them all; with a short one, side shoots
+    # grow out to the far edge
+    rng = np.random.default_rng(0)
+    att = np.column_stack([rng.uniform(-0.5, 0.5, 400), rng.uniform(0.5, 4, 400), np.zeros(400)])
+    kw = dict(influence_radius=2.0, segment_length=0.1)
+    wide = space_colonization(att, np.zeros((1, 3)), kill_distance=np.full(400, 0.6), **kw)
+    short = space_colonization(att, np.zeros((1, 3)), kill_distance=0.15, **kw)
+    assert wide.attractors_left == 0
+    kids = np.bincount(wide.parent[1:], minlength=len(wide.parent))
+    assert (kids > 1).sum() <= 2 < (np.bincount(short.parent[1:]) > 1).sum()
 
 
 def test_pipe_model_and_orders():

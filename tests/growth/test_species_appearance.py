@@ -32,3 +32,19 @@ def test_bad_leaf_type(tmp_path):
     bad.write_text(json.dumps({"base": "oak", "parameters": {}, "appearance": {"leaf_type": "needle"}}))
     with pytest.raises(InputError, match="leaf_type"):
         load_species_appearance(bad)
+
+
+def test_perception_angle_presets_inheritance_and_bad_values(tmp_path):
+    from treeform.growth.species import load_perception_angle
+
+    angles = {name: load_perception_angle(name) for name in SPECIES}
+    assert all(10 <= a <= 90 for a in angles.values())
+    assert angles["acacia"] < angles["apple"]  # narrow vase vs spreading crown
+    variant = tmp_path / "v.json"
+    variant.write_text(json.dumps({"base": "acacia", "parameters": {}}))
+    assert load_perception_angle(variant) == angles["acacia"]  # the base's
+    for bad in (0, 120, "wide"):
+        f = tmp_path / "bad.json"
+        f.write_text(json.dumps({"base": "oak", "parameters": {}, "perception_angle": bad}))
+        with pytest.raises(InputError, match="perception_angle"):
+            load_perception_angle(f)

@@ -4,9 +4,17 @@ With a branch mask, markers are placed on a vertical plane, one per branch pixel
 (§4.4, Fig. 8a–b); a planar branching structure grows toward them by space colonization
 from the bottom-most marker (Fig. 8c); every branch is then turned about the vertical
 axis toward the geometric centre of the left or right half of the sectors of its
-RBV layer (Fig. 8d–f), keeping its front projection on the mask; finally the crown grows with the phenomenological model inside the
-RBV (§4.4.1). Without a mask, the markers fill the RBV's volume, so the scaffold reaches
-every sector before the crown grows.
+RBV layer (Fig. 8d–f). The paper places markers "along the main branching structure and
+in the 3D space of the radial bounding volume" (§1): the self-organizing growth then goes on
+from the turned scaffold toward markers spread through the RBV, so that limbs the photo
+hides fill the sectors the mask's plane does not reach; finally the crown grows with the
+phenomenological model inside the RBV (§4.4.1). Without a mask, the markers fill the RBV's
+volume alone.
+
+Beyond the paper, a mask's scaffold has one tube per branch: a marker is removed once a
+node passes within the local half-width of its branch (:func:`local_thickness`), not a
+fixed pixel and a half, which on a trunk several pixels wide grew parallel strands (a rope
+of thin strands: 5–45 % of the trunk's radius in ``benchmarks/bench_bimodal.py --own``).
 """
 
 from __future__ import annotations
@@ -92,6 +100,32 @@ def mask_markers(mask: np.ndarray, *, height: float | None = None, scale: float 
         base = (float(cols[rows == bottom].mean()) + 0.5, bottom + 0.5)
     frame = MaskFrame((float(base[0]), float(base[1])), scale, mask.shape)
     return frame.to_world(cols, rows), frame
+
+
+def local_thickness(mask: np.ndarray) -> np.ndarray:
+    """Half-width in pixels of the branch each mask pixel belongs to.
+
+    The distance transform read at the nearest pixel of the mask's medial axis (its
+    thinning): on a tube of radius ``r`` pixels every pixel gets about ``r + 0.5``, at its
+    edge as on its axis. Zero outside the mask.
+
+    Examples
+    --------
+    >>> m = np.zeros((9, 12), bool); m[2:7, 1:11] = True   # a bar 5 pixels thick
+    >>> t = local_thickness(m)
+    >>> float(t[2, 5]), float(t[4, 5]), float(t[0, 0])
+    (3.0, 3.0, 0.0)
+    """
+    import scipy.ndimage as ndi
+    from skimage.morphology import skeletonize
+
+    m = check_array(mask, "mask", ndim=2).astype(bool)
+    if not m.any():
+        return np.zeros(m.shape)
+    edt = ndi.distance_transform_edt(m)
+    axis = skeletonize(m)
+    _, (ir, ic) = ndi.distance_transform_edt(~axis, return_indices=True)
+    return np.where(m, edt[ir, ic], 0.0)
 
 
 def _preorder(parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +314,7 @@ class _Shifted:
         return ok
 
 
-def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance: float | None = None,
+def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance=None,
                     influence_radius: float | None = None, perception_angle: float = 90.0,
                     envelope=None, root=None, trunk_height: float = 0.0) -> TreeSkeleton:
     """Self-organizing growth toward markers from ``root``, growing up first (§4.4, Fig. 8c).
@@ -289,7 +323,8 @@ def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance
     defaults to the bottom-most marker, dropped to y = 0; the result is expressed with
     the root at the origin (``envelope`` is given in the markers' coordinates). With
     ``trunk_height`` > 0 a vertical trunk of that height is laid first and only its top
-    sprouts (a bole through the RBV's narrow lowest layers).
+    sprouts (a bole through the RBV's narrow lowest layers). ``kill_distance`` may be one
+    distance per marker.
     """
     from treeform.growth.radii import branch_orders, pipe_model_radii
     from treeform.growth.space_colonization import space_colonization
@@ -305,17 +340,47 @@ def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance
     growable = np.zeros(k, bool)
     growable[-1] = True
     res = space_colonization(markers, start, influence_radius=influence_radius or 40 * seg,
-                             kill_distance=kill_distance or 2.0 * seg, segment_length=seg,
+                             kill_distance=2.0 * seg if kill_distance is None else kill_distance, segment_length=seg,
                              perception_angle=perception_angle, envelope=envelope, growable=growable)
     pos = res.positions - np.array([root[0], 0.0, root[2]])
     radius = pipe_model_radii(res.parent, tip_radius=0.01)
     return TreeSkeleton(pos, res.parent, radius, branch_orders(res.parent, radius), res.iteration.astype(float))
 
 
+def _grow_into_volume(scaffold: TreeSkeleton, rbv: RadialBoundingVolume, n_markers: int, angle: float,
+                      rng: np.random.Generator) -> TreeSkeleton:
+    """Go on growing a (turned) scaffold by space colonization toward markers spread through the RBV.
+
+    Blue-noise markers fill the volume; those near the scaffold are removed at once; every
+    scaffold node may sprout, within a perception cone of half-angle ``angle``; the internode
+    is 1/60 of the RBV's height, as the volume scaffold without a mask. New nodes follow the
+    scaffold's (its order is kept) with pipe-model radii left to the crown.
+    """
+    from treeform.growth.space_colonization import space_colonization
+    from treeform.growth.sampling import blue_noise_points
+
+    height = rbv.physical_height
+    seg = height / 60
+    r = float(rbv.physical_radii.max())
+    lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
+    hi = np.asarray(rbv.origin) + [r, height, r]
+    markers = blue_noise_points(rbv.contains, (lo, hi), int(n_markers), seed=rng)
+    if len(markers) == 0:
+        return scaffold
+    res = space_colonization(markers, scaffold.positions, scaffold.parent, influence_radius=40 * seg,
+                             kill_distance=2 * seg, segment_length=seg, perception_angle=float(angle),
+                             envelope=_Shifted(rbv, np.zeros(3), axis_tolerance=2 * seg))
+    m = len(res.positions) - scaffold.n_nodes
+    return TreeSkeleton(res.positions, res.parent, np.concatenate([scaffold.radius, np.full(m, scaffold.radius.min())]),
+                        np.concatenate([scaffold.order, np.full(m, scaffold.order.max() + 1)]),
+                        np.concatenate([scaffold.age, np.zeros(m)]))
+
+
 def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None = None, mask_scale: float | None = None,
                  mask_base=None, seed=0,
                  markers: int = 4000, segment_length: float | None = None, max_markers: int = 40_000,
                  crown_years: int | None = None, spacing: float | None = None, orient: bool = True, clamp: bool = True,
+                 volume_markers: int = 1500, perception_angle: float = 50.0,
                  progress: ProgressCallback | None = None) -> TreeSkeleton:
     """Grow a tree by the bi-modal model of seed 003 §4.3–4.4 inside a radial bounding volume.
 
@@ -348,15 +413,23 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
     orient : bool
         Rotate the mask's planar scaffold toward the RBV's sectors (§4.4, Fig. 8d–f); off,
         the scaffold stays on the mask's plane (its front view is the mask).
+    volume_markers : int
+        With a mask: markers spread through the RBV toward which the turned scaffold goes on
+        growing (§1: markers "in the 3D space of the radial bounding volume"), so hidden limbs
+        fill the sectors off the mask's plane; 0 keeps the mask's scaffold alone.
+    perception_angle : float
+        Half-angle (degrees) of the perception cone of that volume growth (Palubicki et al.
+        2009): it bounds the angle at which new limbs leave the scaffold, so it is a species
+        trait (:func:`treeform.growth.species.load_perception_angle`).
     progress : callable, optional
 
     Returns
     -------
     TreeSkeleton
-        Scaffold nodes first (never shed), then the crown; ``meta["n_scaffold"]`` counts them.
+        Scaffold nodes first (never shed), then the crown; ``meta["n_scaffold"]`` counts them,
+        ``meta["n_traced"]`` the first of them, traced from the mask (0 without one).
         With a mask, scaffold radii follow the mask's branch widths (half the local width).
     """
-    import scipy.ndimage as ndi
 
     from treeform.growth.phenomenological import grow
     from treeform.growth.radii import branch_orders
@@ -387,11 +460,15 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         if mask is not None:
             pts, frame = mask_markers(mask, height=height, scale=mask_scale, base=mask_base)
             seg = segment_length or frame.scale
+            thick = local_thickness(mask)[np.asarray(mask, bool)]  # the markers' order (row-major)
             if len(pts) > max_markers:
-                pts = pts[np.sort(rng.choice(len(pts), max_markers, replace=False))]
+                pick = np.sort(rng.choice(len(pts), max_markers, replace=False))
+                pts, thick = pts[pick], thick[pick]
     with timer.stage("scaffold"):
         if mask is not None:
-            scaffold = planar_scaffold(pts, segment_length=seg, kill_distance=1.5 * seg, perception_angle=90.0,
+            # a marker goes once a node passes within its branch's half-width (one tube per branch)
+            kill = np.maximum(1.5 * seg, (thick + 0.5) * frame.scale)
+            scaffold = planar_scaffold(pts, segment_length=seg, kill_distance=kill, perception_angle=90.0,
                                        root=np.zeros(3), envelope=_AboveGround())
             if scaffold.n_nodes < 3:
                 # the branches the mask shows are out of the root's reach (e.g. the trunk is
@@ -401,13 +478,10 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         if mask is None:
             pts, scaffold = volume_scaffold()
         if mask is not None:
-            # branch widths from the mask, read while the scaffold still lies on the plane:
-            # every branch pixel belongs to its nearest scaffold node, whose tube must reach
-            # it, but no wider than the branch's local half-width (5x5 maximum of the
-            # distance transform less half a pixel)
+            # branch widths from the mask, read while the scaffold still lies on the plane
+            import scipy.ndimage as ndi
             from scipy.spatial import cKDTree
 
-            half = ndi.maximum_filter(np.maximum(ndi.distance_transform_edt(np.asarray(mask, bool)) - 0.25, 0.0), 5)
             # one Lloyd step: each node moves to the centroid of the branch pixels nearest to it,
             # which centres the tubes on the branches (space colonization's averaged steps wander
             # up to a pixel off a thin branch's ridge)
@@ -419,6 +493,10 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
             has[0] = False
             moved[has, :2] = cen[has] / cnt[has, None]
             scaffold = TreeSkeleton(moved, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
+            # every branch pixel belongs to its nearest scaffold node, whose tube must reach it,
+            # but no wider than the branch's local half-width (5x5 maximum of the distance
+            # transform less a quarter pixel)
+            half = ndi.maximum_filter(np.maximum(ndi.distance_transform_edt(np.asarray(mask, bool)) - 0.25, 0.0), 5)
             px = frame.to_pixels(scaffold.positions)
             cap = half[np.clip(px[:, 1].astype(int), 0, frame.shape[0] - 1),
                        np.clip(px[:, 0].astype(int), 0, frame.shape[1] - 1)]
@@ -437,6 +515,11 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
             pos[1:] = clamp_into(rbv, pos[1:])  # the scaffold stays inside the volume
         scaffold = TreeSkeleton(pos, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
         scaffold.positions[0] = 0.0
+        n_traced = scaffold.n_nodes if mask is not None else 0
+        if mask is not None and volume_markers > 0:
+            n0 = scaffold.n_nodes
+            scaffold = _grow_into_volume(scaffold, rbv, volume_markers, perception_angle, rng)
+            r_mask = np.concatenate([r_mask, np.zeros(scaffold.n_nodes - n0)])
     with timer.stage("crown"):
         from dataclasses import replace
 
@@ -449,7 +532,7 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         on = r_mask > 0
         radius[:k][on] = r_mask[on]
     meta = dict(sk.meta)
-    meta.update({"method": "bimodal", "n_scaffold": int(k)})
+    meta.update({"method": "bimodal", "n_scaffold": int(k), "n_traced": int(n_traced)})
     if mask_note is not None:
         meta["mask_note"] = mask_note
     return TreeSkeleton(sk.positions, sk.parent, radius, branch_orders(sk.parent, radius), sk.age, meta)

@@ -65,6 +65,7 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         Parents of the initial nodes (default: a chain 0 <- 1 <- 2 ...).
     influence_radius, kill_distance, segment_length : float
         Runions's d_i, d_k and D (kill distance should exceed the segment length).
+        ``kill_distance`` may also be an array of shape (A,): one per attractor.
     max_iterations : int
     growable : ndarray, shape (K,), bool, optional
         Which initial nodes may sprout (default: all).
@@ -96,7 +97,13 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
     att = check_array(attractors, "attractors", ndim=2).astype(np.float64).reshape(-1, 3)
     start = check_array(start_positions, "start_positions", ndim=2, min_size=3).astype(np.float64).reshape(-1, 3)
     di = check_positive(influence_radius, "influence_radius")
-    dk = check_positive(kill_distance, "kill_distance")
+    if np.ndim(kill_distance) == 0:
+        dk = check_positive(kill_distance, "kill_distance")
+    else:
+        dk = np.asarray(kill_distance, np.float64).reshape(-1)
+        if dk.shape != (len(att),) or not np.all(dk > 0):
+            raise InputError(f"kill_distance: expected a positive number or {len(att)} positive numbers "
+                             f"(one per attractor)")
     seg = check_positive(segment_length, "segment_length")
     k0 = len(start)
     if start_parent is None:

@@ -8,6 +8,7 @@ Each species is a JSON file beside this module that users can copy and edit::
       "base": "oak",                        # optional: start from this preset, override below
       "parameters": {"growth_rate": 3.0, ...},   # GrowthParameters fields
       "reference_height": 17.0,             # optional: metres of a typical grown tree (RBV scale, 003 §4.4)
+      "perception_angle": 60.0,             # optional: degrees, cone of bi-modal growth's volume limbs
       "appearance": {"leaf_color": [r, g, b], "leaf_size": 0.5,   # optional
                      "leaf_type": "broadleaf"}   # or "needles", "scales" (the leaf texture)
     }
@@ -26,13 +27,14 @@ from treeform._shared.errors import InputError
 from treeform.growth.phenomenological import GrowthParameters
 
 __all__ = ["SPECIES", "SpeciesAppearance", "load_species", "load_species_appearance", "load_reference_height",
-           "species_path"]
+           "load_perception_angle", "species_path"]
 
 _DIR = Path(__file__).resolve().parent
 SPECIES = ("acacia", "apple", "willow", "maple", "birch", "oak", "pine")
 """The seven presets of seed 003 Table 2, in the table's order."""
 
-_TOP_KEYS = {"species", "source", "notes", "base", "parameters", "appearance", "reference_height"}
+_TOP_KEYS = {"species", "source", "notes", "base", "parameters", "appearance", "reference_height",
+             "perception_angle"}
 
 
 @dataclass(frozen=True)
@@ -168,14 +170,39 @@ def load_reference_height(name_or_path) -> float:
     >>> load_reference_height("oak")
     17.0
     """
+    return _positive(name_or_path, "reference_height", 10.0)
+
+
+def load_perception_angle(name_or_path) -> float:
+    """Half-angle (degrees) of the perception cone with which bi-modal growth fills the RBV.
+
+    After the photo's branches are traced and turned (seed 003 §4.4), the scaffold goes on
+    growing by space colonization toward markers in the RBV; the cone bounds the angle at
+    which these hidden limbs leave it, which makes it a species trait. The presets store the
+    angle that best reproduces each species' own branching angle and biomass when it is
+    regrown from its own RBV and branch mask (``python benchmarks/bench_bimodal.py --calibrate``,
+    growth seeds 4-6; the benchmark uses seeds 1-3). A file without it inherits its
+    ``base``'s, else 50°.
+
+    >>> 10 < load_perception_angle("oak") <= 90
+    True
+    """
+    a = _positive(name_or_path, "perception_angle", 50.0)
+    if a > 90:
+        raise InputError(f"species {_read(name_or_path)['_path'].name}: perception_angle must be at most 90, got {a}")
+    return a
+
+
+def _positive(name_or_path, key: str, default: float) -> float:
+    """A positive number stored at the top of a species file, else its ``base``'s, else ``default``."""
     data = _read(name_or_path)
-    h = data.get("reference_height")
-    if h is None:
-        return load_reference_height(data["base"]) if data.get("base") is not None else 10.0
+    v = data.get(key)
+    if v is None:
+        return _positive(data["base"], key, default) if data.get("base") is not None else default
     try:
-        h = float(h)
+        v = float(v)
     except (TypeError, ValueError):
-        raise InputError(f"species {data['_path'].name}: reference_height must be a number, got {h!r}") from None
-    if not h > 0:
-        raise InputError(f"species {data['_path'].name}: reference_height must be positive, got {h}")
-    return h
+        raise InputError(f"species {data['_path'].name}: {key} must be a number, got {v!r}") from None
+    if not v > 0:
+        raise InputError(f"species {data['_path'].name}: {key} must be positive, got {v}")
+    return v
