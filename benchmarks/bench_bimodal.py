@@ -11,9 +11,10 @@ For each species a ground-truth tree is grown (seed 1) and
   growth from each tree's own level-4 RBV and branch mask, 7 species x 3 seeds: mean sector
   radius, average branching angle and biomass against the original's.
 - **own RBV**: every node of the grown tree lies in its own RBV at levels 3–5.
-- **calibration** (``--calibrate``): each species' perception angle (the cone of the limbs that
-  fill the RBV off the mask's plane), chosen on growth seeds 4–6 so that the regrown trees'
-  branching angle and biomass match their originals'; ``--write`` stores it in the presets.
+- **calibration** (``--calibrate``): each species' marker density (1,500 markers in its median
+  level-4 RBV) and perception angle (the cone of the limbs that fill the RBV off the mask's
+  plane), chosen on growth seeds 4–6 so that the regrown trees' branching angle and biomass
+  match their originals'; ``--write`` stores them in the presets.
 
 Run: `python benchmarks/bench_bimodal.py [--own | --calibrate [--write]]`
 """
@@ -65,7 +66,7 @@ def main():
         cam, mask, base, mpp = front_branch_mask(gt, rbv5.physical_height, size)
         t0 = time.perf_counter()
         tree = bimodal_grow(p, target, mask=mask, seed=2, mask_scale=mpp, mask_base=base,
-                            orient=False, clamp=False, crown_years=1, spacing=mpp, volume_markers=0)
+                            orient=False, clamp=False, crown_years=1, spacing=mpp, marker_density=0)
         dt = time.perf_counter() - t0
         wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(tree, radial_segments=6)])).mask
         iou = float((mask & wood).sum() / (mask | wood).sum())
@@ -86,7 +87,7 @@ def own_volume(seeds=(1, 2, 3), size: int = 512):
     """
     from treeform.growth.bimodal import bimodal_grow
     from treeform.growth.phenomenological import grow
-    from treeform.growth.species import SPECIES, load_perception_angle, load_species
+    from treeform.growth.species import SPECIES, load_marker_density, load_perception_angle, load_species
     from treeform.metrics import average_branching_angle, biomass
     from treeform.structures import RadialBoundingVolume
 
@@ -101,7 +102,7 @@ def own_volume(seeds=(1, 2, 3), size: int = 512):
             _, mask, base, mpp = front_branch_mask(gt, target.physical_height, size)
             t0 = time.perf_counter()
             rec = bimodal_grow(p, target, mask=mask, seed=seed + 100, mask_scale=mpp, mask_base=base,
-                               perception_angle=load_perception_angle(sp))
+                               perception_angle=load_perception_angle(sp), marker_density=load_marker_density(sp))
             dt = time.perf_counter() - t0
             got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0.0, -np.inf]), level=4)
             ratio = got.physical_radii.mean() / target.physical_radii.mean()
@@ -117,13 +118,15 @@ def own_volume(seeds=(1, 2, 3), size: int = 512):
     return rows
 
 
-def calibrate(seeds=(4, 5, 6), angles=(15, 20, 25, 30, 40, 50, 60, 75, 90), write: bool = False, size: int = 512):
-    """Each species' perception angle: the cone whose regrown trees best match their originals.
+def calibrate(seeds=(4, 5, 6), angles=(15, 20, 25, 30, 40, 50, 60, 75, 90), write: bool = False, size: int = 512,
+              markers: int = 1500):
+    """Each species' marker density and perception angle, so that its regrown trees match their originals.
 
-    For every species and angle, the trees of ``seeds`` are regrown from their own level-4 RBV
-    and branch mask; the score is the mean of |log(branching angle ratio)| + |log(biomass
+    The density puts ``markers`` markers in the median level-4 RBV of the trees of ``seeds``.
+    Then, for every angle, those trees are regrown from their own level-4 RBV and branch mask
+    with that density; the score is the mean of |log(branching angle ratio)| + |log(biomass
     ratio)| + 10 max(0, 0.9 - sector radius ratio) (fill is a constraint, angle and biomass the
-    goal). Among the angles within 0.03 of the best score (ties within the noise of three
+    goal). Among the angles within 0.05 of the best score (ties within the noise of three
     trees), the one nearest the species' own branching angle is chosen; it is printed and,
     with ``write``, stored in its preset.
     """
@@ -135,8 +138,8 @@ def calibrate(seeds=(4, 5, 6), angles=(15, 20, 25, 30, 40, 50, 60, 75, 90), writ
     from treeform.metrics import average_branching_angle, biomass
     from treeform.structures import RadialBoundingVolume
 
-    print("| species | " + " | ".join(f"{a}°" for a in angles) + " | chosen |")
-    print("|---|" + "---|" * (len(angles) + 1))
+    print("| species | markers / m³ | " + " | ".join(f"{a}°" for a in angles) + " | chosen |")
+    print("|---|---|" + "---|" * (len(angles) + 1))
     for sp in SPECIES:
         p = load_species(sp)
         cases = []
@@ -145,24 +148,26 @@ def calibrate(seeds=(4, 5, 6), angles=(15, 20, 25, 30, 40, 50, 60, 75, 90), writ
             target = RadialBoundingVolume.from_skeleton(gt, level=4)
             _, mask, base, mpp = front_branch_mask(gt, target.physical_height, size)
             cases.append((seed, gt, target, mask, base, mpp))
+        density = float(f"{markers / np.median([c[2].volume() for c in cases]):.3g}")
         scores = []
         for a in angles:
             s = []
             for seed, gt, target, mask, base, mpp in cases:
                 rec = bimodal_grow(p, target, mask=mask, seed=seed + 100, mask_scale=mpp, mask_base=base,
-                                   perception_angle=a)
+                                   perception_angle=a, marker_density=density)
                 got = RadialBoundingVolume.from_points(np.maximum(rec.positions, [-np.inf, 0.0, -np.inf]), level=4)
                 fill = got.physical_radii.mean() / target.physical_radii.mean()
                 s.append(abs(np.log(average_branching_angle(rec) / average_branching_angle(gt)))
                          + abs(np.log(biomass(rec) / biomass(gt))) + 10 * max(0.0, 0.9 - fill))
             scores.append(float(np.mean(s)))
-        near = [a for a, x in zip(angles, scores) if x <= min(scores) + 0.03]
+        near = [a for a, x in zip(angles, scores) if x <= min(scores) + 0.05]
         best = min(near, key=lambda a: abs(a - p.branching_angle_mean))
-        print(f"| {sp} | " + " | ".join(f"{x:.2f}" for x in scores) + f" | {best}° |", flush=True)
+        print(f"| {sp} | {density} | " + " | ".join(f"{x:.2f}" for x in scores) + f" | {best}° |", flush=True)
         if write:
             path = species_path(sp)
             data = json.loads(path.read_text())
             data["perception_angle"] = float(best)
+            data["marker_density"] = density
             path.write_text(json.dumps(data, indent=2, ensure_ascii=False) + "\n")
 
 

@@ -57,13 +57,13 @@ def _own_mask(species, seed=1):
 
 @pytest.mark.parametrize("species", ["maple", "acacia"])
 def test_default_growth_from_own_rbv_and_mask_matches_the_original(species):
-    from treeform.growth.species import load_perception_angle
+    from treeform.growth.species import load_marker_density, load_perception_angle
     from treeform.metrics import average_branching_angle, biomass
 
     p, gt, rbv, cam, mask, base = _own_mask(species)
     target = rbv.at_level(4)
     kw = dict(mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal, mask_base=base,
-              perception_angle=load_perception_angle(species))
+              perception_angle=load_perception_angle(species), marker_density=load_marker_density(species))
     rec = bimodal_grow(p, target, **kw)
     k = rec.meta["n_scaffold"]
     assert target.contains(rec.positions[1:k]).mean() > 0.99  # the scaffold stays inside
@@ -71,7 +71,7 @@ def test_default_growth_from_own_rbv_and_mask_matches_the_original(species):
     assert got.physical_radii.mean() >= 0.9 * target.physical_radii.mean()  # fills the volume
     assert 0.7 <= average_branching_angle(rec) / average_branching_angle(gt) <= 1.3
     assert 0.7 <= biomass(rec) / biomass(gt) <= 1.3
-    alone = bimodal_grow(p, target, volume_markers=0, **kw)  # the mask's plane alone fills less
+    alone = bimodal_grow(p, target, **{**kw, "marker_density": 0})  # the mask's plane alone fills less
     got0 = RadialBoundingVolume.from_points(np.maximum(alone.positions, [-np.inf, 0, -np.inf]), level=4)
     assert got0.physical_radii.mean() < got.physical_radii.mean()
 
@@ -108,7 +108,7 @@ def test_mask_growth_reproduces_the_branch_mask(species):
     # the tracing stage alone: the planar scaffold at pixel spacing, one crown year, not turned
     rec = bimodal_grow(p, rbv.at_level(4), mask=mask, seed=2, mask_scale=cam.position[2] / cam.focal,
                        mask_base=(base[0], base[1]), orient=False, clamp=False, crown_years=1,
-                       spacing=cam.position[2] / cam.focal, volume_markers=0)
+                       spacing=cam.position[2] / cam.focal, marker_density=0)
     wood = Renderer(cam, samples=1).render(Mesh([branch_mesh(rec, radial_segments=6)])).mask
     iou = (mask & wood).sum() / (mask | wood).sum()
     assert iou >= 0.6, iou

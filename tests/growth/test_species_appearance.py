@@ -48,3 +48,15 @@ def test_perception_angle_presets_inheritance_and_bad_values(tmp_path):
         f.write_text(json.dumps({"base": "oak", "parameters": {}, "perception_angle": bad}))
         with pytest.raises(InputError, match="perception_angle"):
             load_perception_angle(f)
+
+
+def test_marker_density_presets_and_bad_values(tmp_path):
+    from treeform.growth.species import load_marker_density
+
+    d = {name: load_marker_density(name) for name in SPECIES}
+    assert all(0 < v < 20 for v in d.values())
+    assert d["pine"] > 3 * d["oak"]  # a small dense conifer crown against a large open one
+    f = tmp_path / "bad.json"
+    f.write_text(json.dumps({"base": "oak", "parameters": {}, "marker_density": -1}))
+    with pytest.raises(InputError, match="marker_density"):
+        load_marker_density(f)

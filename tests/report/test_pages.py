@@ -50,6 +50,9 @@ def _open(page_path, shot_path):
             page.wait_for_function("window.treeformViewerState && (window.treeformViewerState.done"
                                    " || window.treeformViewerState.error)", timeout=120_000)
             state = page.evaluate("window.treeformViewerState")
+            # the last draw reaches the screen at the next frames (a busy machine delays them)
+            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            page.wait_for_timeout(200)
             page.locator("#tf-viewer").screenshot(path=str(shot_path))
             cells = {k: page.locator(f"td[data-key='{k}']").first.inner_text()
                      for k in page.eval_on_selector_all("td[data-key]", "els => els.map(e => e.dataset.key)")}

@@ -347,6 +347,10 @@ def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance
     return TreeSkeleton(pos, res.parent, radius, branch_orders(res.parent, radius), res.iteration.astype(float))
 
 
+MAX_VOLUME_MARKERS = 20_000
+"""At most this many markers fill an RBV beside a mask's scaffold (a huge volume stays fast)."""
+
+
 def _grow_into_volume(scaffold: TreeSkeleton, rbv: RadialBoundingVolume, n_markers: int, angle: float,
                       rng: np.random.Generator) -> TreeSkeleton:
     """Go on growing a (turned) scaffold by space colonization toward markers spread through the RBV.
@@ -380,7 +384,7 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
                  mask_base=None, seed=0,
                  markers: int = 4000, segment_length: float | None = None, max_markers: int = 40_000,
                  crown_years: int | None = None, spacing: float | None = None, orient: bool = True, clamp: bool = True,
-                 volume_markers: int = 1500, perception_angle: float = 50.0,
+                 marker_density: float = 0.5, perception_angle: float = 50.0,
                  progress: ProgressCallback | None = None) -> TreeSkeleton:
     """Grow a tree by the bi-modal model of seed 003 §4.3–4.4 inside a radial bounding volume.
 
@@ -413,10 +417,12 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
     orient : bool
         Rotate the mask's planar scaffold toward the RBV's sectors (§4.4, Fig. 8d–f); off,
         the scaffold stays on the mask's plane (its front view is the mask).
-    volume_markers : int
-        With a mask: markers spread through the RBV toward which the turned scaffold goes on
-        growing (§1: markers "in the 3D space of the radial bounding volume"), so hidden limbs
-        fill the sectors off the mask's plane; 0 keeps the mask's scaffold alone.
+    marker_density : float
+        With a mask: markers per m³ of the RBV spread through it, toward which the turned
+        scaffold goes on growing (§1: markers "in the 3D space of the radial bounding
+        volume"), so hidden limbs fill the sectors off the mask's plane (at most
+        :data:`MAX_VOLUME_MARKERS`); 0 keeps the mask's scaffold alone. How densely a crown
+        is branched is a species trait (:func:`treeform.growth.species.load_marker_density`).
     perception_angle : float
         Half-angle (degrees) of the perception cone of that volume growth (Palubicki et al.
         2009): it bounds the angle at which new limbs leave the scaffold, so it is a species
@@ -516,9 +522,11 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         scaffold = TreeSkeleton(pos, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
         scaffold.positions[0] = 0.0
         n_traced = scaffold.n_nodes if mask is not None else 0
-        if mask is not None and volume_markers > 0:
+        n_volume = int(min(round(check_positive(marker_density, "marker_density", allow_zero=True) * rbv.volume()),
+                           MAX_VOLUME_MARKERS))
+        if mask is not None and n_volume > 0:
             n0 = scaffold.n_nodes
-            scaffold = _grow_into_volume(scaffold, rbv, volume_markers, perception_angle, rng)
+            scaffold = _grow_into_volume(scaffold, rbv, n_volume, perception_angle, rng)
             r_mask = np.concatenate([r_mask, np.zeros(scaffold.n_nodes - n0)])
     with timer.stage("crown"):
         from dataclasses import replace

@@ -9,6 +9,7 @@ Each species is a JSON file beside this module that users can copy and edit::
       "parameters": {"growth_rate": 3.0, ...},   # GrowthParameters fields
       "reference_height": 17.0,             # optional: metres of a typical grown tree (RBV scale, 003 §4.4)
       "perception_angle": 60.0,             # optional: degrees, cone of bi-modal growth's volume limbs
+      "marker_density": 0.5,                # optional: markers per m³ of RBV for those limbs
       "appearance": {"leaf_color": [r, g, b], "leaf_size": 0.5,   # optional
                      "leaf_type": "broadleaf"}   # or "needles", "scales" (the leaf texture)
     }
@@ -27,14 +28,14 @@ from treeform._shared.errors import InputError
 from treeform.growth.phenomenological import GrowthParameters
 
 __all__ = ["SPECIES", "SpeciesAppearance", "load_species", "load_species_appearance", "load_reference_height",
-           "load_perception_angle", "species_path"]
+           "load_perception_angle", "load_marker_density", "species_path"]
 
 _DIR = Path(__file__).resolve().parent
 SPECIES = ("acacia", "apple", "willow", "maple", "birch", "oak", "pine")
 """The seven presets of seed 003 Table 2, in the table's order."""
 
 _TOP_KEYS = {"species", "source", "notes", "base", "parameters", "appearance", "reference_height",
-             "perception_angle"}
+             "perception_angle", "marker_density"}
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,21 @@ def load_perception_angle(name_or_path) -> float:
     if a > 90:
         raise InputError(f"species {_read(name_or_path)['_path'].name}: perception_angle must be at most 90, got {a}")
     return a
+
+
+def load_marker_density(name_or_path) -> float:
+    """Markers per m³ of the RBV with which bi-modal growth grows the limbs the photo hides.
+
+    How densely the species branches through its crown: the presets store 1,500 markers in
+    the median level-4 RBV of the preset grown with seeds 4-6
+    (``python benchmarks/bench_bimodal.py --calibrate``), so a small or open crown gets fewer
+    limbs than a large one of the same species. A file without it inherits its ``base``'s,
+    else 0.5.
+
+    >>> load_marker_density("pine") > load_marker_density("maple")  # a dense small crown
+    True
+    """
+    return _positive(name_or_path, "marker_density", 0.5)
 
 
 def _positive(name_or_path, key: str, default: float) -> float:

@@ -185,7 +185,8 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         ``out`` cannot be written.
     """
     from treeform.growth.phenomenological import GrowthParameters
-    from treeform.growth.species import load_perception_angle, load_species, load_species_appearance
+    from treeform.growth.species import (load_marker_density, load_perception_angle, load_species,
+                                         load_species_appearance)
 
     base = config.to_dict() if config is not None else {}
     cfg_names = {f.name for f in fields(GrowConfig)}
@@ -218,7 +219,8 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
             mask = branch_mask if branch_mask is not None else (
                 _read_branch_mask(cfg.mask) if cfg.mask is not None else None)
             skeleton = bimodal_grow(params, rbv, mask=mask, mask_scale=mask_scale, mask_base=mask_base,
-                                    seed=cfg.seed, perception_angle=load_perception_angle(cfg.species))
+                                    seed=cfg.seed, perception_angle=load_perception_angle(cfg.species),
+                                    marker_density=load_marker_density(cfg.species))
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
         from treeform.geometry import LOD_PRESETS, foliage_budget
