@@ -51,13 +51,15 @@ def main():
             continue
         m = res.metrics
         rows[stem] = {k: m[k] for k in ("reprojection_error", "iou", "depth_width_ratio", "front_ssim",
-                                        "front_color_distance", "stems_at_5_percent", "total_seconds")}
+                                        "front_color_distance", "side_color_distance", "stems_at_5_percent",
+                                        "total_seconds")}
         for k in ("search_error_first", "search_error_best", "n_branches"):  # abs: the search's gain
             if k in m:
                 rows[stem][k] = m[k]
         print(f"{stem:32s} err {100 * m['reprojection_error']:5.1f} %  IoU {m['iou']:.3f}  "
               f"depth/width {m['depth_width_ratio']:.2f}  SSIM {m['front_ssim']:.3f}  "
-              f"colour {m['front_color_distance']:.3f}  stems {m['stems_at_5_percent']}  {m['total_seconds']:.2f} s")
+              f"colour {m['front_color_distance']:.3f} side {m['side_color_distance']:.3f}  "
+              f"stems {m['stems_at_5_percent']}  {m['total_seconds']:.2f} s")
     ok = [r for r in rows.values() if "error" not in r]
     errs = [r["reprojection_error"] for r in ok]
     dws = [r["depth_width_ratio"] for r in ok]
@@ -69,6 +71,7 @@ def main():
                "median_front_ssim": statistics.median(r["front_ssim"] for r in ok) if ok else None,
                "one_stem": sum(r["stems_at_5_percent"] == 1 for r in ok),
                "median_front_color_distance": statistics.median(r["front_color_distance"] for r in ok) if ok else None,
+               "median_side_color_distance": statistics.median(r["side_color_distance"] for r in ok) if ok else None,
                "depth_width_min": min(dws) if dws else None, "depth_width_max": max(dws) if dws else None,
                "per_photo": rows}
     if ok and "search_error_first" in ok[0]:

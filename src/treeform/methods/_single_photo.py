@@ -153,7 +153,9 @@ def photo_metrics(renders: dict, photo_camera: Camera, image: np.ndarray, tree_m
         ``tree_mask``; ``depth_width_ratio`` (side extent over front extent); ``front_ssim``
         (mean SSIM inside ``tree_mask``) and ``front_color_distance`` (Hellinger distance of
         the RGB histograms inside ``tree_mask``, 0 = same colours) of the front render
-        against the photo.
+        against the photo; ``side_color_distance``: the side render's tree pixels against
+        the photo's (the side shows cards the camera never saw: their colours should still
+        be the photo tree's, not its sky or its background).
     """
     from treeform.metrics import color_distance, extent_ratio, iou, reprojection_error, ssim
     from treeform.report import photo_window
@@ -170,6 +172,9 @@ def photo_metrics(renders: dict, photo_camera: Camera, image: np.ndarray, tree_m
         "depth_width_ratio": extent_ratio(renders["side"].mask, front.mask),
         "front_ssim": round(ssim(shown, image, tree), 4) if has_tree else 0.0,
         "front_color_distance": round(color_distance(shown, image, tree), 4) if has_tree else 1.0,
+        "side_color_distance": (round(color_distance(renders["side"].color[..., :3], image, renders["side"].mask,
+                                                     reference_mask=tree), 4)
+                                if has_tree and renders["side"].mask.any() else 1.0),
     }
 
 

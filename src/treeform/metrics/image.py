@@ -74,7 +74,7 @@ def ssim(rendered, reference, mask=None, *, data_range: float = 255.0) -> float:
     return float(smap[m].mean())
 
 
-def color_distance(rendered, reference, mask=None, *, bins: int = 8) -> float:
+def color_distance(rendered, reference, mask=None, *, reference_mask=None, bins: int = 8) -> float:
     """Hellinger distance between the RGB colour histograms of two images over ``mask``.
 
     Each image's pixels inside ``mask`` fall into ``bins``³ RGB cells; the distance
@@ -85,6 +85,10 @@ def color_distance(rendered, reference, mask=None, *, bins: int = 8) -> float:
     ----------
     rendered, reference : ndarray, shape (H, W, 3), uint8
     mask : ndarray, shape (H, W), bool, optional
+    reference_mask : ndarray, bool, optional
+        The reference's own pixels, when they are elsewhere (e.g. a side view against the
+        photo's tree): ``reference`` may then have another size, and ``mask`` selects in
+        ``rendered`` only.
     bins : int
         Cells per channel (2..64).
 
@@ -93,18 +97,26 @@ def color_distance(rendered, reference, mask=None, *, bins: int = 8) -> float:
     >>> a = np.zeros((4, 4, 3), np.uint8); b = np.full((4, 4, 3), 255, np.uint8)
     >>> color_distance(a, a), color_distance(a, b)
     (0.0, 1.0)
+    >>> big = np.zeros((8, 8, 3), np.uint8); big[:4] = 255; top = np.zeros((8, 8), bool); top[:4] = True
+    >>> color_distance(b, big, reference_mask=top)
+    0.0
     """
     from treeform._shared.checks import check_int
 
     bins = check_int(bins, "bins", 2, 64)
-    a, b, m = _images(rendered, reference, mask)
-    if a.ndim != 3 or a.shape[2] != 3:
-        raise InputError(f"images: expected (H, W, 3) RGB arrays, got {a.shape}")
+    if reference_mask is None:
+        a, b, m = _images(rendered, reference, mask)
+        mb = m
+    else:
+        a, _, m = _images(rendered, rendered, mask)
+        b, _, mb = _images(reference, reference, reference_mask)
+    if a.ndim != 3 or a.shape[2] != 3 or b.ndim != 3 or b.shape[2] != 3:
+        raise InputError(f"images: expected (H, W, 3) RGB arrays, got {a.shape} and {b.shape}")
 
-    def hist(img):
-        q = np.clip((img[m] * (bins / 256.0)).astype(np.int64), 0, bins - 1)
+    def hist(img, sel):
+        q = np.clip((img[sel] * (bins / 256.0)).astype(np.int64), 0, bins - 1)
         h = np.bincount((q[:, 0] * bins + q[:, 1]) * bins + q[:, 2], minlength=bins**3).astype(np.float64)
         return h / h.sum()
 
-    bc = float(np.sqrt(hist(a) * hist(b)).sum())
+    bc = float(np.sqrt(hist(a, m) * hist(b, mb)).sum())
     return float(np.sqrt(max(0.0, 1.0 - min(bc, 1.0))))
