@@ -58,3 +58,44 @@ def dense_tree_rgba():
     rgba[crown, :3] = np.clip(np.array([62, 118, 40]) * shade[crown, None], 0, 255)
     rgba[..., 3] = np.where(crown | trunk, 255, 0)
     return rgba
+
+
+@pytest.fixture
+def dask_cluster_processes(tmp_path):
+    """Start ``dask scheduler`` and ``dask worker`` as their own processes; yields ``start(nworkers) -> address``.
+
+    Everything started is killed (with its process group) when the test ends.
+    """
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    procs = []
+    dask = [sys.executable, "-m", "dask"]
+
+    def start(nworkers: int = 1) -> str:
+        sched_file = tmp_path / "scheduler.json"
+        procs.append(subprocess.Popen(dask + ["scheduler", "--scheduler-file", str(sched_file), "--port", "0",
+                                              "--dashboard-address", ":0", "--host", "127.0.0.1"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        deadline = time.time() + 60
+        while not sched_file.exists() and time.time() < deadline:
+            time.sleep(0.1)
+        assert sched_file.exists(), "the scheduler did not start"
+        time.sleep(0.2)
+        address = json.loads(sched_file.read_text())["address"]
+        procs.append(subprocess.Popen(dask + ["worker", address, "--nworkers", str(nworkers), "--nthreads", "1",
+                                              "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
+        return address
+
+    yield start
+    for p in procs:
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        p.wait()

@@ -205,36 +205,15 @@ def test_dask_retries_once_then_records(tmp_path):
     assert partial_indices(tmp_path) == set()  # the shard is written: its stored samples are gone
 
 
-def test_generation_on_a_separately_started_scheduler_and_workers(tmp_path, gl):
+def test_generation_on_a_separately_started_scheduler_and_workers(tmp_path, gl, dask_cluster_processes):
     """``dask scheduler`` and ``dask worker`` as their own processes, the CLI as a client."""
-    sched_file = tmp_path / "scheduler.json"
-    dask = [sys.executable, "-m", "dask"]
-    procs = [subprocess.Popen(dask + ["scheduler", "--scheduler-file", str(sched_file), "--port", "0",
-                                      "--dashboard-address", ":0", "--host", "127.0.0.1"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)]
-    try:
-        deadline = time.time() + 60
-        while not sched_file.exists() and time.time() < deadline:
-            time.sleep(0.1)
-        assert sched_file.exists(), "the scheduler did not start"
-        time.sleep(0.2)
-        address = json.loads(sched_file.read_text())["address"]
-        procs.append(subprocess.Popen(dask + ["worker", address, "--nworkers", "2", "--nthreads", "1",
-                                              "--no-dashboard"],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True))
-        out = tmp_path / "ds"
-        run = subprocess.run([sys.executable, "-m", "treeform", "dataset", "generate", "-n", "4", "-o", str(out),
-                              "--size", "48", "--shard-size", "2", "--scheduler", address, "--seed", "5"],
-                             capture_output=True, text=True, timeout=300)
-        assert run.returncode == 0, run.stderr
-        assert "4 samples in 2 new shard(s)" in run.stdout
-        stored = read_shard(out / "shard-00001.tar")[0]
-        again = sample_members(5, 2, {**OPTIONS, "supersample": 2, "lod": "medium"})
-        assert all(stored[k] == again[k] for k in stored)  # same bytes as a local, in-process sample
-    finally:
-        for p in procs:
-            try:
-                os.killpg(p.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            p.wait()
+    address = dask_cluster_processes(2)
+    out = tmp_path / "ds"
+    run = subprocess.run([sys.executable, "-m", "treeform", "dataset", "generate", "-n", "4", "-o", str(out),
+                          "--size", "48", "--shard-size", "2", "--scheduler", address, "--seed", "5"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "4 samples in 2 new shard(s)" in run.stdout
+    stored = read_shard(out / "shard-00001.tar")[0]
+    again = sample_members(5, 2, {**OPTIONS, "supersample": 2, "lod": "medium"})
+    assert all(stored[k] == again[k] for k in stored)  # same bytes as a local, in-process sample

@@ -1,0 +1,265 @@
+"""``treeform batch``: reconstruct every photo of a folder, one Dask task per photo.
+
+Each photo runs ``treeform reconstruct`` in a child process of its Dask worker, watched by
+the worker: past ``timeout`` seconds, or once the child's resident memory passes
+``memory_limit``, the child is killed and the photo recorded as failed with that reason — the
+worker and its other photos go on. A photo's outputs are written to ``NAME.partial/`` and
+renamed to ``NAME/`` when complete, so a folder is never half a result. ``manifest.json``
+holds every photo's state (done / failed, reason, seconds, key metrics), rewritten after each
+photo: a rerun (after a kill too) skips the done photos and retries the failed ones.
+``failures.json`` lists the failures with their one-line reasons; ``summary.html`` is a
+contact sheet of the previews with their metrics.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from treeform._shared.errors import InputError
+
+__all__ = ["PHOTO_SUFFIXES", "parse_memory", "list_photos", "reconstruct_one", "run_batch"]
+
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+"""File suffixes (any case) taken as photos; other files in the folder are ignored."""
+MANIFEST, FAILURES, SUMMARY = "manifest.json", "failures.json", "summary.html"
+KEY_METRICS = ("reprojection_error", "iou", "front_ssim", "tree_height_m", "leaves", "triangles", "total_seconds")
+"""The metrics.json figures the manifest and the contact sheet keep per photo."""
+_UNITS = {"": 1, "B": 1, "KB": 10**3, "MB": 10**6, "GB": 10**9, "TB": 10**12, "KIB": 2**10, "MIB": 2**20,
+          "GIB": 2**30, "TIB": 2**40}
+
+
+def parse_memory(text) -> int:
+    """Bytes from ``"4GB"``, ``"512MiB"``, ``"2e9"``; 0 or ``"none"`` for no limit.
+
+    Examples
+    --------
+    >>> parse_memory("4GB"), parse_memory("512MiB"), parse_memory("none")
+    (4000000000, 536870912, 0)
+    """
+    s = str(text).strip().upper().replace(" ", "")
+    if s in ("", "0", "NONE"):
+        return 0
+    num = s.rstrip("KMGTIB")
+    unit = s[len(num):]
+    try:
+        value = float(num)
+    except ValueError:
+        value = -1.0
+    if unit not in _UNITS or not value > 0:
+        raise InputError(f"memory limit: expected a size like 4GB or 512MiB (or none), got {text!r}")
+    return int(value * _UNITS[unit])
+
+
+def list_photos(input_dir) -> list[Path]:
+    """The photos of a folder (by suffix, not recursive), sorted by name; InputError when there is none."""
+    d = Path(input_dir)
+    if not d.is_dir():
+        raise InputError(f"{d}: not a folder")
+    photos = sorted(p for p in d.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES)
+    if not photos:
+        raise InputError(f"{d}: no photos in it (looked for {', '.join(PHOTO_SUFFIXES)})")
+    return photos
+
+
+def _folder_names(photos: list[Path]) -> list[str]:
+    """Each photo's output folder: its stem, or stem_ext where two photos share a stem."""
+    stems = [p.stem for p in photos]
+    return [p.stem if stems.count(p.stem) == 1 else f"{p.stem}_{p.suffix[1:].lower()}" for p in photos]
+
+
+def _reason(stderr: str, returncode: int) -> str:
+    """The child's own one-line error, else what ended it."""
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+    err = [ln for ln in lines if ln.lower().startswith("error:")]
+    if err:
+        return err[-1][len("error:"):].strip()
+    if returncode < 0:
+        return f"killed by signal {-returncode}"
+    return lines[-1][:300] if lines else f"exit status {returncode}"
+
+
+def _rss(proc) -> int:
+    """Resident memory of a process and its children, bytes (0 once it is gone)."""
+    import psutil
+
+    try:
+        p = psutil.Process(proc.pid)
+        return p.memory_info().rss + sum(c.memory_info().rss for c in p.children(recursive=True))
+    except psutil.Error:
+        return 0
+
+
+def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: int = 0, timeout: float = 600.0,
+                    memory_limit: int = 0, options=()) -> dict:
+    """Reconstruct one photo into ``folder`` in a child process, killed past ``timeout`` s or ``memory_limit`` bytes.
+
+    Returns
+    -------
+    dict
+        ``status`` ("done" or "failed"), ``seconds``, and ``reason`` (failed) or ``metrics``
+        (done: :data:`KEY_METRICS` from the photo's metrics.json).
+    """
+    out, tmp = Path(folder), Path(str(folder) + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    cmd = [sys.executable, "-m", "treeform", "reconstruct", str(photo), "--out", str(tmp), "--method", method,
+           "--seed", str(int(seed)), *map(str, options)]
+    t0 = time.perf_counter()
+    reason = None
+    with subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                          env=dict(os.environ, TERM="dumb")) as proc:
+        import threading
+
+        err: list = []
+        reader = threading.Thread(target=lambda: err.append(proc.stderr.read()), daemon=True)
+        reader.start()
+        while proc.poll() is None:
+            if time.perf_counter() - t0 > timeout:
+                reason = f"timed out after {timeout:g} s"
+            elif memory_limit and _rss(proc) > memory_limit:
+                reason = f"out of memory: over the {memory_limit / 1e9:.3g} GB limit"
+            if reason is not None:
+                import psutil
+
+                try:
+                    for c in psutil.Process(proc.pid).children(recursive=True):
+                        c.kill()
+                except psutil.Error:
+                    pass
+                proc.kill()
+                proc.wait()
+                break
+            time.sleep(0.05)
+        reader.join(timeout=5)
+    seconds = round(time.perf_counter() - t0, 3)
+    if reason is None and proc.returncode != 0:
+        reason = _reason("".join(e for e in err if e), proc.returncode)
+    if reason is None and not (tmp / "metrics.json").is_file():
+        reason = "the reconstruction wrote no metrics.json"
+    if reason is not None:
+        shutil.rmtree(tmp, ignore_errors=True)
+        return {"status": "failed", "reason": reason, "seconds": seconds}
+    shutil.rmtree(out, ignore_errors=True)
+    tmp.rename(out)
+    m = json.loads((out / "metrics.json").read_text())
+    return {"status": "done", "seconds": seconds, "metrics": {k: m[k] for k in KEY_METRICS if k in m}}
+
+
+def _write_json(path: Path, data) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    tmp.replace(path)
+
+
+def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, workers: int | None = None,
+              scheduler: str | None = None, timeout: float = 600.0, memory_limit="4GB", options=(),
+              progress=None) -> dict:
+    """Reconstruct every photo of ``input_dir`` into ``out/NAME/``, one Dask task per photo.
+
+    Parameters
+    ----------
+    input_dir : path
+        Folder of photos (:data:`PHOTO_SUFFIXES`).
+    out : path
+        Output folder: a subfolder per photo with the method's outputs, ``manifest.json``,
+        ``failures.json`` and ``summary.html``. A rerun skips the photos done and retries
+        the failed ones.
+    method : str
+        A single-photo method of the registry (envelope, learned, abs).
+    seed : int
+    workers : int, optional
+        LocalCluster worker processes (default: the machine's cores); 0 runs the photos one
+        after the other from this process. Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://HOST:PORT``); its workers need treeform.
+    timeout : float
+        Seconds a photo may take before it is killed and recorded as failed.
+    memory_limit : str or int
+        Resident memory a photo's process may use ("4GB"; 0 or "none": no limit).
+    options : sequence of str
+        Further ``treeform reconstruct`` options, e.g. ``("--leaves", "4000")``.
+    progress : callable, optional
+        ``progress(done, total)`` after each photo.
+
+    Returns
+    -------
+    dict
+        ``total``, ``done``, ``failed``, ``skipped`` (done before this run), ``seconds``,
+        ``photos_per_second`` and the ``manifest``.
+    """
+    from treeform.io.outputs import check_out_dir
+    from treeform.methods import METHODS
+
+    if method not in METHODS or method in ("variations",):
+        known = ", ".join(k for k in METHODS if k != "variations")
+        raise InputError(f"method: expected one of {known}, got {method!r}")
+    photos = list_photos(input_dir)
+    if timeout is None or not float(timeout) > 0:
+        raise InputError(f"timeout: expected a positive number of seconds, got {timeout!r}")
+    mem = parse_memory(memory_limit) if not isinstance(memory_limit, int) else int(memory_limit)
+    if mem < 0:
+        raise InputError(f"memory limit: expected 0 (none) or more bytes, got {mem}")
+    out_dir = check_out_dir(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = _folder_names(photos)
+    mpath = out_dir / MANIFEST
+    manifest = json.loads(mpath.read_text()) if mpath.is_file() else {}
+    done_before = {n for n, e in manifest.items()
+                   if e.get("status") == "done" and (out_dir / e.get("folder", n) / "metrics.json").is_file()}
+    todo = [(p, n) for p, n in zip(photos, names) if n not in done_before]
+    kw = dict(method=method, seed=int(seed), timeout=float(timeout), memory_limit=mem, options=tuple(options))
+    t0 = time.perf_counter()
+    state = {"n": len(done_before)}
+
+    def finish(photo: Path, name: str, res: dict) -> None:
+        manifest[name] = {"photo": photo.name, "folder": name, **res}
+        _write_json(mpath, manifest)
+        _write_json(out_dir / FAILURES, [{"photo": e["photo"], "reason": e["reason"]}
+                                         for e in manifest.values() if e.get("status") == "failed"])
+        state["n"] += 1
+        if progress is not None:
+            progress(state["n"], len(photos))
+
+    if progress is not None:
+        progress(state["n"], len(photos))
+    if todo and workers == 0:
+        for p, n in todo:
+            finish(p, n, reconstruct_one(str(p), str(out_dir / n), **kw))
+    elif todo:
+        from distributed import as_completed
+
+        from treeform._shared.cluster import dask_client
+
+        client, cluster = dask_client(workers or os.cpu_count() or 1, scheduler)
+        try:
+            futs = {client.submit(reconstruct_one, str(p), str(out_dir / n), **kw, key=f"batch-{n}-{seed}-{t0}",
+                                  pure=False): (p, n) for p, n in todo}
+            for fut in as_completed(futs):
+                p, n = futs[fut]
+                try:
+                    res = fut.result()
+                except Exception as exc:  # the worker itself was lost
+                    res = {"status": "failed", "reason": f"worker lost: {type(exc).__name__}: {exc}"[:300],
+                           "seconds": None}
+                finish(p, n, res)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    _write_json(out_dir / FAILURES, [{"photo": e["photo"], "reason": e["reason"]}
+                                     for e in manifest.values() if e.get("status") == "failed"])
+    from treeform.report import write_batch_summary
+
+    write_batch_summary(out_dir, {n: manifest[n] for n in names if n in manifest}, title=f"treeform batch ({method})")
+    seconds = time.perf_counter() - t0
+    ran = len(todo)
+    return {"total": len(photos), "done": sum(e.get("status") == "done" for e in manifest.values() if
+                                              e["folder"] in names),
+            "failed": sum(e.get("status") == "failed" for e in manifest.values() if e["folder"] in names),
+            "skipped": len(done_before), "seconds": round(seconds, 2),
+            "photos_per_second": round(ran / seconds, 3) if ran and seconds > 0 else None, "manifest": manifest}
