@@ -25,14 +25,36 @@ def test_segment_writes_single_channel_labels_at_photo_size(tmp_path, segmenter)
     assert Image.open(ov).size == im.size
 
 
-def test_segment_treeless_photo_fails_cleanly(tmp_path):
+@pytest.mark.parametrize("segmenter", ["learned", "classical"])
+def test_segment_treeless_photo_fails_cleanly(tmp_path, segmenter):
     noise = np.random.default_rng(1).integers(0, 256, (200, 300, 3)).astype(np.uint8)
     Image.fromarray(noise).save(tmp_path / "noise.png")
     out = tmp_path / "out"
     out.mkdir()
-    proc = cli("segment", tmp_path / "noise.png", "-o", out / "labels.png", "--segmenter", "learned")
+    proc = cli("segment", tmp_path / "noise.png", "-o", out / "labels.png", "--segmenter", segmenter)
     assert_clean_failure(proc, out)
     assert "no tree found" in proc.stderr
+
+
+def test_photo_commands_with_the_colour_rules_say_no_tree_on_noise(tmp_path):
+    # the rules alone call random noise a tree (a 'reconstruction' with 14 % error); the photo
+    # commands ask the network first. The library function keeps the rules' answer.
+    from treeform._shared.errors import NoTreeFoundError
+    from treeform.methods.envelope.pipeline import reconstruct
+    from treeform.methods.variations.billboard import billboard
+    from treeform.segment import segment
+
+    noise = np.random.default_rng(1).integers(0, 256, (200, 300, 3)).astype(np.uint8)
+    assert segment(noise, method="classical").tree_mask.any()
+    with pytest.raises(NoTreeFoundError):
+        segment(noise, method="classical", require_tree=True)
+    with pytest.raises(NoTreeFoundError):
+        reconstruct(noise, out=tmp_path / "r")
+    with pytest.raises(NoTreeFoundError):
+        billboard(noise)
+    assert not (tmp_path / "r").exists()
+    sample = np.asarray(Image.open(SAMPLE).convert("RGB"))
+    assert segment(sample, method="classical", require_tree=True).tree_mask.mean() > 0.2
 
 
 def test_species_prints_top3_and_json():

@@ -81,12 +81,13 @@ def load_photo(photo, mask=None, *, max_size: int) -> tuple[Photo, np.ndarray | 
 
 
 def segment_or_mask(image: np.ndarray, user_mask, *, segmenter: str, seed: int):
-    """The user's mask labelled foliage / wood, or the automatic segmentation (``segmenter``)."""
+    """The user's mask labelled foliage / wood, or the automatic segmentation (``segmenter``; a photo
+    without a tree raises :class:`NoTreeFoundError`, see :func:`treeform.segment.segment`)."""
     from treeform.segment import mask_to_segmentation, segment
 
     if user_mask is not None:
         return mask_to_segmentation(user_mask, image)
-    return segment(image, method=segmenter, seed=seed)
+    return segment(image, method=segmenter, seed=seed, require_tree=True)
 
 
 def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: float = 35.0,

@@ -23,16 +23,28 @@ docs/MODELS.md and the README's grid); the learned method and ``treeform species
 network, which their species and RBV networks were trained with."""
 
 
-def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0):
+def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tree: bool = False):
     """Segment the main tree of an (H, W, 3) uint8 photo with ``method`` ('learned' or 'classical').
 
-    The classical graph cut uses ``seed``; the network is deterministic.
+    The classical graph cut uses ``seed``; the network is deterministic. The colour rules
+    find a "tree" in anything green or textured enough, random noise included: with
+    ``require_tree`` (what the photo commands ask) the network, without its edge refinement
+    (~0.05 s), is asked first whether the photo holds a tree at all, and
+    :class:`~treeform._shared.errors.NoTreeFoundError` is raised when it does not (without
+    usable weights the rules go on alone).
     """
     from treeform._shared.checks import check_choice
 
     check_choice(method, "segmenter", SEGMENTERS)
     if method == "learned":
         return segment_tree_learned(image)
+    if require_tree:
+        from treeform._shared.errors import ModelError
+
+        try:
+            segment_tree_learned(image, refine="none")
+        except ModelError:
+            pass
     return segment_tree(image, seed=seed)
 
 

@@ -77,7 +77,7 @@ def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmen
 
         ph = as_photo(photo, max_size)
     with timer.stage("segment"):
-        seg = segment(ph.image, method=segmenter, seed=seed)
+        seg = segment(ph.image, method=segmenter, seed=seed, require_tree=True)
     files = {}
     with timer.stage("write"):
         from treeform.io.images import write_png
@@ -112,6 +112,6 @@ def classify_species(photo, *, segmenter: str = "learned", seed: int = 0, max_si
     with timer.stage("load"):
         ph, _ = load_photo(photo, max_size=max_size)
     with timer.stage("segment"):
-        seg = segment(ph.image, method=segmenter, seed=seed)
+        seg = segment(ph.image, method=segmenter, seed=seed, require_tree=True)
     with timer.stage("species"):
         return predict_species(seg.labels)

@@ -86,7 +86,7 @@ def billboard(photo, *, out=None, sheet=None, config: VariationsConfig | None = 
     with timer.stage("segment"):
         from treeform.segment import segment
 
-        seg = segment(image, method=cfg.segmenter, seed=cfg.seed)
+        seg = segment(image, method=cfg.segmenter, seed=cfg.seed, require_tree=True)
     with timer.stage("trimap"):
         from treeform.segment.matting import make_trimap
 
