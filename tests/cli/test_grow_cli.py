@@ -1,6 +1,7 @@
 """`treeform grow`: writes its files; bad input fails with one `error:` line, no traceback, no files."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -86,3 +87,12 @@ def test_grow_inside_an_rbv_from_the_cli(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert (out / "tree.glb").exists()
     assert_clean_failure(cli("grow", "--mask", tmp_path / "v.npz", "--out", tmp_path / "h"), tmp_path / "h")
+
+
+@pytest.mark.parametrize("verb", ["grow", "reconstruct"])
+def test_a_negative_seed_is_one_clear_line(tmp_path, verb):
+    sample = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    args = ["--species", "oak"] if verb == "grow" else [str(sample)]
+    proc = cli(verb, *args, "--seed", "-5", "--out", tmp_path / "o")
+    assert_clean_failure(proc, tmp_path / "o")
+    assert "seed: expected a non-negative integer, got -5" in proc.stderr
