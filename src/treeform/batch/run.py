@@ -18,6 +18,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -95,6 +96,19 @@ def _rss(proc) -> int:
         return 0
 
 
+def _kill_tree(proc) -> None:
+    """Kill a process and every process it started, and reap it."""
+    import psutil
+
+    try:
+        for c in psutil.Process(proc.pid).children(recursive=True):
+            c.kill()
+    except psutil.Error:
+        pass
+    proc.kill()
+    proc.wait()
+
+
 def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: int = 0, timeout: float = 600.0,
                     memory_limit: int = 0, options=()) -> dict:
     """Reconstruct one photo into ``folder`` in a child process, killed past ``timeout`` s or ``memory_limit`` bytes.
@@ -113,8 +127,6 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
     reason = None
     with subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                           env=dict(os.environ, TERM="dumb")) as proc:
-        import threading
-
         err: list = []
         reader = threading.Thread(target=lambda: err.append(proc.stderr.read()), daemon=True)
         reader.start()
@@ -124,15 +136,7 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
             elif memory_limit and _rss(proc) > memory_limit:
                 reason = f"out of memory: over the {memory_limit / 1e9:.3g} GB limit"
             if reason is not None:
-                import psutil
-
-                try:
-                    for c in psutil.Process(proc.pid).children(recursive=True):
-                        c.kill()
-                except psutil.Error:
-                    pass
-                proc.kill()
-                proc.wait()
+                _kill_tree(proc)
                 break
             time.sleep(0.05)
         reader.join(timeout=5)
@@ -148,6 +152,10 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
     tmp.rename(out)
     m = json.loads((out / "metrics.json").read_text())
     return {"status": "done", "seconds": seconds, "metrics": {k: m[k] for k in KEY_METRICS if k in m}}
+
+
+def _failures(manifest: dict) -> list:
+    return [{"photo": e["photo"], "reason": e["reason"]} for e in manifest.values() if e.get("status") == "failed"]
 
 
 def _write_json(path: Path, data) -> None:
@@ -199,6 +207,8 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
         known = ", ".join(k for k in METHODS if k != "variations")
         raise InputError(f"method: expected one of {known}, got {method!r}")
     photos = list_photos(input_dir)
+    if workers is not None and int(workers) < 0:
+        raise InputError(f"workers: expected 0 or more, got {workers}")
     if timeout is None or not float(timeout) > 0:
         raise InputError(f"timeout: expected a positive number of seconds, got {timeout!r}")
     mem = parse_memory(memory_limit) if not isinstance(memory_limit, int) else int(memory_limit)
@@ -219,8 +229,7 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     def finish(photo: Path, name: str, res: dict) -> None:
         manifest[name] = {"photo": photo.name, "folder": name, **res}
         _write_json(mpath, manifest)
-        _write_json(out_dir / FAILURES, [{"photo": e["photo"], "reason": e["reason"]}
-                                         for e in manifest.values() if e.get("status") == "failed"])
+        _write_json(out_dir / FAILURES, _failures(manifest))
         state["n"] += 1
         if progress is not None:
             progress(state["n"], len(photos))
@@ -251,15 +260,14 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
             client.close()
             if cluster is not None:
                 cluster.close()
-    _write_json(out_dir / FAILURES, [{"photo": e["photo"], "reason": e["reason"]}
-                                     for e in manifest.values() if e.get("status") == "failed"])
+    _write_json(out_dir / FAILURES, _failures(manifest))
     from treeform.report import write_batch_summary
 
-    write_batch_summary(out_dir, {n: manifest[n] for n in names if n in manifest}, title=f"treeform batch ({method})")
+    these = {n: manifest[n] for n in names if n in manifest}  # this folder's photos (a manifest may hold old ones)
+    write_batch_summary(out_dir, these, title=f"treeform batch ({method})")
     seconds = time.perf_counter() - t0
     ran = len(todo)
-    return {"total": len(photos), "done": sum(e.get("status") == "done" for e in manifest.values() if
-                                              e["folder"] in names),
-            "failed": sum(e.get("status") == "failed" for e in manifest.values() if e["folder"] in names),
+    statuses = [e.get("status") for e in these.values()]
+    return {"total": len(photos), "done": statuses.count("done"), "failed": statuses.count("failed"),
             "skipped": len(done_before), "seconds": round(seconds, 2),
             "photos_per_second": round(ran / seconds, 3) if ran and seconds > 0 else None, "manifest": manifest}

@@ -30,10 +30,6 @@ def batch_cmd(
     from treeform.batch import run_batch
     from treeform.cli.progress import CountProgress
 
-    if workers is not None and workers < 0:
-        from treeform.cli.app import _fail
-
-        _fail(f"--workers: expected 0 or more, got {workers}", 2)
     res = run_api(run_batch, input_dir, out, method=method.value, seed=seed, workers=workers, scheduler=scheduler,
                   timeout=timeout, memory_limit=memory_limit, display=CountProgress("photos"),
                   inputs=[input_dir])
