@@ -149,7 +149,11 @@ def main():
               "the main tree kept: the part with the largest area x (median sharpness)^2, so a blurred tree "
               "behind loses to the photographed one, and its neighbours; then a band of 1.5 % of the long "
               "side around its edge is re-solved by closed-form matting (outline and sky gaps drawn from the "
-              "photo's colours, finer than the network's stride).", "",
+              "photo's colours, finer than the network's stride); the mask is cut at the photo's ground line "
+              "(the colour rules' dynamic-programming line) where what lies below it is flat and wide (lawn, "
+              "road, undergrowth), but for the trunk's foot; and the trunk that stands on the tree's foot "
+              "(upright bark, found by shape and colour) is labelled wood, and added below the crown where the "
+              "network left it out and it is as sharp as the crown.", "",
               f"- parameters: {n:,}; ONNX {mb:.2f} MB",
               f"- logits at stride {c.get('fine_stride', 4)}",
               f"- training{' (stage 1)' if fine else ''}: {c.get('steps')} steps x {c.get('batch')} scenes of "

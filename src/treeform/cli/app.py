@@ -9,6 +9,7 @@ from typing import Optional
 
 import typer
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform import __version__
 from treeform._shared.errors import TreeformError
 
@@ -47,8 +48,9 @@ def _choices(name: str, *values: str) -> type:
 
 Crown = _choices("Crown", "round", "conical")
 SegmenterName = _choices("SegmenterName", "learned", "classical")
-SEGMENTER_OPTION = typer.Option(SegmenterName.classical, "--segmenter",
-                                help="Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network).")
+SEGMENTER_OPTION = typer.Option(SegmenterName(DEFAULT_SEGMENTER), "--segmenter",
+                                help=f"Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network); "
+                                     f"default {DEFAULT_SEGMENTER}.")
 
 
 Lod = _choices("Lod", "low", "medium", "high", "full")
@@ -138,8 +140,8 @@ def reconstruct(
                                            help="Tree height in metres (envelope and abs default 10; learned: the "
                                                 "species')."),
     segmenter: Optional[SegmenterName] = typer.Option(
-        None, "--segmenter", help="Tree segmentation: 'classical' or 'learned' (default: envelope classical, "
-                                  "learned learned)."),
+        None, "--segmenter", help=f"Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network); "
+                                  f"default: the learned method's network, else {DEFAULT_SEGMENTER}."),
     foliage: FoliageKind = typer.Option(FoliageKind.auto, "--foliage",
                                         help="Leaf cards: broadleaf, needles (pine) or scales (thuja); auto: "
                                              "envelope needles for --crown conical, learned the species'."),
@@ -185,7 +187,7 @@ def reconstruct(
         res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
                       inputs=(photo, ("--mask", mask)), candidates=24 if candidates is None else candidates,
                       tree_height=10.0 if height is None else height,
-                      segmenter=(segmenter or SegmenterName.classical).value, stages=STAGES,
+                      segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, stages=STAGES,
                       texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
     elif method is Method.learned:
         if given:
@@ -221,7 +223,7 @@ def reconstruct(
         res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, inputs=(photo, ("--mask", mask)),
                       leaves=8000 if leaves is None else leaves, lod=lod.value,
                       tree_height=10.0 if height is None else height,
-                      segmenter=(segmenter or SegmenterName.classical).value, foliage=foliage.value,
+                      segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, foliage=foliage.value,
                       texture_size=texture_size,
                       leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)
     print_summary(res)

@@ -1,26 +1,17 @@
 """Photo -> :class:`~treeform.structures.Segmentation` (background / foliage / wood).
 
 ``segment`` finds the one main tree of an ordinary outdoor photo without user input, with
-the learned network (:func:`segment_tree_learned`) or the colour rules of
-:func:`segment_tree` (:data:`DEFAULT_SEGMENTER`); ``mask_to_segmentation`` labels a
-user-supplied tree mask.
+the learned network (:func:`segment_tree_learned`, the :data:`DEFAULT_SEGMENTER`) or the
+colour rules of :func:`segment_tree`; ``mask_to_segmentation`` labels a user-supplied tree
+mask.
 """
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER, SEGMENTERS
 from treeform.segment.classical import mask_to_segmentation, segment_tree, wood_colour_mask
 from treeform.segment.learned import segment_tree_learned
 
 __all__ = ["segment", "SEGMENTERS", "DEFAULT_SEGMENTER", "segment_tree", "segment_tree_learned",
            "mask_to_segmentation", "wood_colour_mask"]
-
-SEGMENTERS = ("learned", "classical")
-"""Names accepted by :func:`segment` (``--segmenter``)."""
-
-DEFAULT_SEGMENTER = "classical"
-"""The segmenter of the commands that segment a photo (reconstruct's envelope method, billboard, cloud,
-segment) unless told otherwise. On real photos the colour rules still find the whole main tree
-more reliably than the network trained so far (which misses some trees entirely; see
-docs/MODELS.md and the README's grid); the learned method and ``treeform species`` use the
-network, which their species and RBV networks were trained with."""
 
 
 def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tree: bool = False):

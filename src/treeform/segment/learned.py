@@ -13,7 +13,7 @@ import numpy as np
 from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["segment_tree_learned", "guided_filter"]
+__all__ = ["segment_tree_learned", "guided_filter", "stand_on_ground"]
 
 MIN_TREE_FRACTION = 0.01
 """A main tree smaller than this share of the photo counts as no tree."""
@@ -126,8 +126,69 @@ def _matte_refine(img: np.ndarray, tree: np.ndarray, p_tree: np.ndarray,
     return alpha > 0.5, alpha
 
 
+def stand_on_ground(tree: np.ndarray, ground: np.ndarray, *, margin: float = 0.01,
+                    foot_share: float = 0.25, min_width: float = 0.2) -> np.ndarray:
+    """A tree mask cut at the ground line, but for the foot of its trunk.
+
+    A tree stands on the ground: what a mask holds more than ``margin`` x H below the
+    photo's ground line (lawn, a road, a hedge's foot, the tree's shadow) is not the tree,
+    except in the columns of its trunk. The trunk's columns are the narrow runs of the
+    mask in a band of 5 % of H just above the ground line (each at most ``foot_share`` of the
+    mask's widest row); a run wider than that is undergrowth taken in, not a trunk, and
+    keeps nothing below the line. Only pieces that lie like ground go: at least
+    ``min_width`` x W wide and wider than tall. A photo looking up into a crown has no
+    ground, and a line placed in it would cut tall pieces of trunk, not flat bands.
+
+    Parameters
+    ----------
+    tree : ndarray, shape (H, W), bool
+    ground : ndarray, shape (W,), int
+        First ground row of each column (``H`` = no ground; :func:`~treeform.segment.classical.ground_line`).
+    margin, foot_share, min_width : float
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+
+    Examples
+    --------
+    A crown, its trunk down to row 90 and a lawn taken in from row 80, where the ground begins:
+
+    >>> m = np.zeros((100, 60), bool); m[10:50, 10:50] = True; m[50:90, 28:32] = True; m[80:90, :] = True
+    >>> out = stand_on_ground(m, np.full(60, 80))
+    >>> int(m[85].sum()), int(out[85].sum())  # the lawn goes, the trunk's foot (and a pixel beside) stays
+    (60, 6)
+    """
+    tree = np.asarray(tree, bool)
+    H, W = tree.shape
+    g = np.asarray(ground, np.int64).reshape(-1)
+    if g.shape != (W,):
+        raise InputError(f"ground: expected {W} rows (one per column), got shape {g.shape}")
+    rows = np.arange(H)[:, None]
+    below = rows > g[None, :] + margin * H
+    if not (tree & below).any():
+        return tree
+    widest = int(tree.sum(1).max())
+    band = (tree & (rows >= g[None, :] - 0.06 * H) & (rows < g[None, :] - margin * H)).any(0)
+    keep = np.zeros(W, bool)
+    pad = max(1, int(round(margin * W)))
+    edges = np.flatnonzero(np.diff(np.r_[0, band.astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2]):  # runs [a, b) of the foot band
+        if b - a <= foot_share * widest:
+            keep[max(0, a - pad):b + pad] = True
+    cut = tree & below & ~keep[None, :]
+    # only what lies like ground: pieces at least min_width x W wide and wider than tall (a lawn,
+    # a road, a hedge's foot); a narrow or tall piece is more likely the tree over a misplaced line
+    import cv2
+
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(cut.astype(np.uint8), connectivity=8)
+    flat = np.zeros(n, bool)
+    flat[1:] = (stats[1:, 2] >= min_width * W) & (stats[1:, 2] >= stats[1:, 3])
+    return tree & ~flat[lab]
+
+
 def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matting",
-                         fill_holes: float = HOLE_FRACTION) -> Segmentation:
+                         fill_holes: float = HOLE_FRACTION, ground: bool = True, trunk: bool = True) -> Segmentation:
     """Segment the main tree of a photo with the learned network.
 
     Parameters
@@ -144,6 +205,16 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     fill_holes : float
         Holes inside the tree smaller than this share of the tree's area become foliage
         (0 keeps every hole); with ``refine='matting'``, holes of blue sky stay holes.
+    ground : bool
+        Cut the tree at the photo's ground line but for its trunk's foot
+        (:func:`stand_on_ground`, :func:`~treeform.segment.classical.ground_line`): lawn,
+        road and undergrowth the network takes in go.
+    trunk : bool
+        Label the trunk standing in the tree's foot wood, and (with ``ground``) add the
+        trunk below the crown where the network left it out
+        (:func:`~treeform.segment.classical.trunk_in_mask`: upright bark from the foot, by
+        shape and colour). The network draws thin wood but often calls a wide or shaded
+        trunk foliage; an autumn crown stays foliage either way.
 
     Returns
     -------
@@ -160,7 +231,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     ModelError
         The weights file is missing or unreadable.
     """
-    from treeform.learn.infer import Segmenter, focus_map, main_tree
+    from treeform.learn.infer import Segmenter, _components, focus_map, main_tree
 
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -189,6 +260,11 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     # the main tree: the largest part, weighted by sharpness (a blurred tree behind loses)
     focus = focus_map(img, seg_net.side)
     tree = main_tree(p_tree > 0.5, focus=focus)
+    if ground:
+        from treeform.segment.classical import ground_line
+
+        g = ground_line(img)
+        tree = main_tree(stand_on_ground(tree, g), focus=focus)
     if tree.mean() < MIN_TREE_FRACTION:
         raise NoTreeFoundError("no tree found in the photo")
     if refine == "matting":
@@ -196,10 +272,27 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
 
         sky = blue_sky(img)
         matte, a = _matte_refine(img, tree, p_tree, sky)
+        if ground:
+            matte = stand_on_ground(matte, g)
         matte = main_tree(matte, focus=focus)
         if matte.mean() >= MIN_TREE_FRACTION:
             tree, p_tree = matte, np.asarray(a, np.float32)
     labels = np.where(tree, np.where(p[..., 2] > p[..., 1], 2, 1), 0).astype(np.uint8)
+    if trunk:  # the trunk is wood, also where the network left it out below the crown
+        from treeform.segment.classical import trunk_in_mask
+
+        stem = trunk_in_mask(img, tree, ground=g if ground else None)
+        out = stem & ~tree
+        if out.any():  # a trunk below the crown is as sharp as the crown; one behind it is not
+            n, lab_out, _ = _components(out)
+            sharp = np.median(focus[tree])
+            for k in range(1, n):
+                part = lab_out == k
+                if np.median(focus[part]) < 0.5 * sharp:
+                    stem &= ~part
+        labels[stem] = 2
+        p_tree = np.where(stem & ~tree, 1.0, p_tree)
+        tree = tree | stem
     if fill_holes > 0:
         import scipy.ndimage as ndi
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform._shared.checks import check_choice, check_int, check_positive
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
@@ -28,7 +29,7 @@ class EnvelopeConfig:
     """Long side in pixels the photo is reduced to before any work."""
     tree_height: float = 10.0
     """Assumed height of the tree in metres (a single photo has no absolute scale)."""
-    segmenter: str = "classical"
+    segmenter: str = DEFAULT_SEGMENTER
     """Tree segmentation: 'classical' (colour rules + graph cut, default) or 'learned' (the network)."""
     fov_y: float = 40.0
     """Vertical field of view of the photo's camera in degrees."""

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform._shared.timing import StageTimer
 
 __all__ = ["SEGMENT_STAGES", "SPECIES_STAGES", "SegmentResult", "classify_species", "segment_photo"]
@@ -35,7 +36,7 @@ class SegmentResult:
         return {"foliage": float((lab == 1).mean()), "wood": float((lab == 2).mean())}
 
 
-def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmenter: str = "classical",
+def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmenter: str = DEFAULT_SEGMENTER,
                   seed: int = 0, max_size: int = 4096, progress=None) -> SegmentResult:
     """Segment the main tree of a photo and write its labels.
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numbers
 from dataclasses import asdict, dataclass
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform._shared.checks import check_choice, check_int, check_known_options, check_positive
 from treeform._shared.errors import InputError
 
@@ -44,7 +45,7 @@ class SynthesisConfig:
     """First-order branches of the skeleton; None: the candidates draw n from the species prior."""
     levels: int = 2
     """Branch orders the skeletonisation recurses to (§3.5)."""
-    segmenter: str = "classical"
+    segmenter: str = DEFAULT_SEGMENTER
     """Tree segmentation: 'classical' (colour rules + graph cut, default) or 'learned' (the network)."""
     max_size: int = 640
     """Long side in pixels the photo is reduced to before any work."""

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform import __version__
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, write_json
@@ -468,7 +469,7 @@ SKELETON2D_STAGES = ("load", "segment", "skeleton", "export")
 """Stage names of :func:`skeleton2d`."""
 
 
-def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, segmenter: str = "classical",
+def skeleton2d(photo, *, out, mask=None, n_branches: int = 5, levels: int = 2, segmenter: str = DEFAULT_SEGMENTER,
                max_size: int = 640, seed: int = 0, source: str = "auto", progress: ProgressCallback | None = None):
     """The 2D analysis of seed 004 alone: the photo's branch skeleton drawn over it (§3).
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform._shared.checks import check_choice
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
@@ -61,7 +62,7 @@ class VariationsConfig:
     """Long side a photo is reduced to before a billboard is made of it."""
     matting_side: int = 800
     """Long side at which alpha matting runs (the alpha is upsampled to the photo's size)."""
-    segmenter: str = "classical"
+    segmenter: str = DEFAULT_SEGMENTER
     """Billboards from photos and the season photo: tree segmentation, 'classical' (colour rules,
     default) or 'learned' (network)."""
     sky_gaps: bool = False
@@ -127,7 +128,7 @@ class CloudConfig:
 
     seed: int = 0
     """Random seed: same picture + seed -> byte-identical GLB and JSON."""
-    segmenter: str = "classical"
+    segmenter: str = DEFAULT_SEGMENTER
     """A photo (no transparency) is made into a billboard first: 'classical' (default) or 'learned' segmentation."""
     size: int = 1024
     """Side of the normalised picture the cloud is made of, pixels (§4.1: 1024)."""

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform._shared.checks import check_choice
 from treeform._shared.errors import InputError, NoTreeFoundError
 
@@ -100,7 +101,7 @@ def _trunk(wood: np.ndarray, tree: np.ndarray) -> np.ndarray:
     return keep[lab]
 
 
-def season_reference(image, *, segmenter: str = "classical", seed: int = 0,
+def season_reference(image, *, segmenter: str = DEFAULT_SEGMENTER, seed: int = 0,
                      min_trunk: float = 0.005) -> SeasonReference:
     """Crown and trunk colours of the tree in a photo (seed 000 §5.3, tree pixels only).
 
