@@ -9,7 +9,8 @@ Blender's Python module pins its own numpy, so this runs in a separate environme
 facts.json: the imported objects, the scene's bounding box (Blender is Z-up: the glTF
 importer turns treeform's Y-up metres into Z-up metres), each material's textures and alpha
 set-up, the share of faces whose shading normals disagree with their winding (inside-out),
-and, per render, the share of the tree's pixels that came out black.
+the animation (armatures, actions, how far the skinned mesh moves over the clip, the gap between
+its first and last frame), and, per render, the share of the tree's pixels that came out black.
 """
 
 from __future__ import annotations
@@ -107,6 +108,7 @@ def main(argv=None):
                      "materials": [s.material.name for s in o.material_slots if s.material]} for o in meshes],
         "bbox_min": lo, "bbox_max": hi, "materials": list(mats.values()), "renders": {},
     }
+    facts["animation"] = _animation_facts(scene, meshes)
     if args.render:
         facts["renders"] = _render(scene, lo, hi, args)
     text = json.dumps(facts, indent=1)
@@ -115,6 +117,35 @@ def main(argv=None):
             f.write(text)
     else:
         print(text)
+
+
+def _animation_facts(scene, meshes) -> dict:
+    """Armatures and actions the importer made, and how far the evaluated (skinned) mesh moves
+    between the first frame, a quarter of the clip and its last frame."""
+    import bpy
+
+    actions = [{"name": a.name, "frames": [float(a.frame_range[0]), float(a.frame_range[1])]}
+               for a in bpy.data.actions]
+    out = {"armatures": sum(o.type == "ARMATURE" for o in scene.objects), "actions": actions}
+    if not actions or not meshes:
+        return out
+    start, end = actions[0]["frames"]
+
+    def verts(frame):
+        scene.frame_set(int(round(frame)))
+        dg = bpy.context.evaluated_depsgraph_get()
+        pts = []
+        for o in meshes:
+            ev = o.evaluated_get(dg)
+            me = ev.to_mesh()
+            pts.extend((ev.matrix_world @ v.co).copy() for v in me.vertices)
+            ev.to_mesh_clear()
+        return pts
+
+    a, b, c = verts(start), verts(start + 0.25 * (end - start)), verts(end)
+    out["moved"] = max((p - q).length for p, q in zip(a, b))
+    out["loop_gap"] = max((p - q).length for p, q in zip(a, c))
+    return out
 
 
 def _render(scene, lo, hi, args) -> dict:

@@ -20,6 +20,24 @@ def isolated_photos() -> list[Path]:
 
 
 @pytest.fixture
+def browser():
+    """Headless Chromium (WebGL by SwiftShader) through playwright; skips where either is missing."""
+    import shutil
+
+    exe = next((p for p in (shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")) if p), None)
+    if exe is None:
+        pytest.skip("no Chromium here (Debian: apt-get install chromium)")
+    sync_playwright = pytest.importorskip("playwright.sync_api", reason="playwright not installed").sync_playwright
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=exe,
+                              args=["--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"])
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
 def photos_dir():
     if not PHOTOS.exists():
         pytest.skip("../shared/data/photos is not available")

@@ -74,5 +74,24 @@ def test_blender_cycles_render_is_a_lit_green_tree(blender_facts, view):
     assert green > red and green > blue  # the photo's summer crown, not grey cards
 
 
+def test_blender_plays_the_wind_animation(tmp_path):
+    """`treeform animate`'s GLB in Blender: an armature, one action, the skinned mesh sways and loops."""
+    py = _blender_python()
+    if py is None:
+        pytest.skip("no Python with Blender's bpy module (make blender)")
+    from treeform.animate import animate_tree
+    from treeform.methods.learned.grow import grow_tree
+
+    grow_tree("oak", seed=3, out=tmp_path / "oak", lod="low", leaves=1500)
+    res = animate_tree(tmp_path / "oak", wind=12.0, seconds=2.0, fps=12)
+    facts = tmp_path / "facts.json"
+    subprocess.run([py, str(ROOT / "scripts" / "blender_view.py"), res["path"], "--json", str(facts)],
+                   check=True, capture_output=True, timeout=600)
+    anim = json.loads(facts.read_text())["animation"]
+    assert anim["armatures"] == 1 and len(anim["actions"]) >= 1
+    assert anim["moved"] > 0.01                       # metres: the crown sways
+    assert anim["loop_gap"] < 0.2 * anim["moved"]     # the clip's end is its start
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__, "-v"]))

@@ -1,11 +1,9 @@
 """report.html pages (evaluation, single run) in a real browser (headless Chromium through playwright)."""
 
-import shutil
 
 import numpy as np
 import pytest
 
-CHROMIUM = next((p for p in (shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")) if p), None)
 
 
 @pytest.fixture(scope="module")
@@ -31,46 +29,38 @@ def test_the_page_holds_the_numbers_and_pictures_of_the_results(report):
     assert "gt_glb" in first["files"] and "gt_glb" not in second["files"]  # viewer=1: GLBs for the first case only
 
 
-def _open(page_path, shot_path):
+def _open(browser, page_path, shot_path):
     """Open a page from the file system in headless Chromium; (console errors, viewer state, canvas pixels)."""
-    if CHROMIUM is None:
-        pytest.skip("no Chromium here (Debian: apt-get install chromium)")
-    sync_playwright = pytest.importorskip("playwright.sync_api", reason="playwright not installed").sync_playwright
     from PIL import Image
 
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM,
-                                    args=["--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"])
-        try:
-            page = browser.new_page(viewport={"width": 1200, "height": 900})
-            errors = []
-            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(page_path.as_uri())  # from the file system: no server
-            page.wait_for_function("window.treeformViewerState && (window.treeformViewerState.done"
-                                   " || window.treeformViewerState.error)", timeout=120_000)
-            state = page.evaluate("window.treeformViewerState")
-            # the last draw reaches the screen at the next frames (a busy machine delays them)
-            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
-            page.wait_for_timeout(200)
-            page.locator("#tf-viewer").screenshot(path=str(shot_path))
-            cells = {k: page.locator(f"td[data-key='{k}']").first.inner_text()
-                     for k in page.eval_on_selector_all("td[data-key]", "els => els.map(e => e.dataset.key)")}
-        finally:
-            browser.close()
+    page = browser.new_page(viewport={"width": 1200, "height": 900})
+    errors = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(page_path.as_uri())  # from the file system: no server
+    page.wait_for_function("window.treeformViewerState && (window.treeformViewerState.done"
+                           " || window.treeformViewerState.error)", timeout=120_000)
+    state = page.evaluate("window.treeformViewerState")
+    # the last draw reaches the screen at the next frames (a busy machine delays them)
+    page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+    page.wait_for_timeout(200)
+    page.locator("#tf-viewer").screenshot(path=str(shot_path))
+    cells = {k: page.locator(f"td[data-key='{k}']").first.inner_text()
+             for k in page.eval_on_selector_all("td[data-key]", "els => els.map(e => e.dataset.key)")}
+    page.close()
     return errors, state, np.asarray(Image.open(shot_path).convert("L"), float), cells
 
 
-def test_eval_report_opens_in_headless_chromium_without_errors_and_the_viewer_draws(report, tmp_path):
+def test_eval_report_opens_in_headless_chromium_without_errors_and_the_viewer_draws(report, tmp_path, browser):
     out, res = report
-    errors, state, shot, cells = _open(out / "report.html", tmp_path / "viewer.png")
+    errors, state, shot, cells = _open(browser, out / "report.html", tmp_path / "viewer.png")
     assert errors == []
     assert state["error"] is None and state["loaded"] == state["expected"] == 2  # truth + envelope GLBs
     assert shot.std() > 8.0  # trees drawn, not a blank canvas
     assert cells["front_iou"].split()[0] == f"{res['aggregate']['envelope']['scores']['front_iou']['median']:.4g}"
 
 
-def test_grow_report_shows_the_tree_and_its_metrics(tmp_path, gl):
+def test_grow_report_shows_the_tree_and_its_metrics(tmp_path, gl, browser):
     from treeform.methods.learned.grow import grow_tree
     from treeform.report import write_run_report
 
@@ -78,13 +68,13 @@ def test_grow_report_shows_the_tree_and_its_metrics(tmp_path, gl):
     page = write_run_report(tmp_path / "t", title="grow birch")
     text = page.read_text()
     assert "preview.png" in text and (tmp_path / "t" / "tree.glb.js").exists()
-    errors, state, shot, cells = _open(page, tmp_path / "viewer.png")
+    errors, state, shot, cells = _open(browser, page, tmp_path / "viewer.png")
     assert errors == [] and state["loaded"] == 1 and shot.std() > 8.0
     assert cells["nodes"] == str(res.metrics["nodes"])
     assert cells["tree_form.biomass_m3"] == f"{res.metrics['tree_form']['biomass_m3']:.4g}"
 
 
-def test_cloud_report_shows_the_billboard_cloud_and_its_metrics(tmp_path, gl):
+def test_cloud_report_shows_the_billboard_cloud_and_its_metrics(tmp_path, gl, browser):
     from pathlib import Path
 
     from treeform.methods.variations.cloud import cloud
@@ -93,7 +83,7 @@ def test_cloud_report_shows_the_billboard_cloud_and_its_metrics(tmp_path, gl):
     res = cloud(oak, out=tmp_path / "oak.glb", report=tmp_path / "oak_report", size=256, segments=48)
     page = res.files["report"]
     assert page == tmp_path / "oak_report" / "report.html" and (tmp_path / "oak_report" / "oak.glb.js").exists()
-    errors, state, shot, cells = _open(page, tmp_path / "viewer.png")
+    errors, state, shot, cells = _open(browser, page, tmp_path / "viewer.png")
     assert errors == [] and state["error"] is None and state["loaded"] == 1
     assert shot.std() > 8.0  # billboards drawn, not a blank canvas
     assert cells["billboards"] == str(res.metrics["billboards"]) and cells["iou"] == f"{res.metrics['iou']:.4g}"

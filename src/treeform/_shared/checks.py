@@ -43,6 +43,21 @@ def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
     return v
 
 
+def check_finite(value, name: str) -> float:
+    """Return ``value`` as a float after checking it is a finite number.
+
+    >>> check_finite("2.5", "angle")
+    2.5
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise InputError(f"{name}: expected a finite number, got {value!r}")
+    return v
+
+
 def check_int(value, name: str, lo: int, hi: int) -> int:
     """Return ``value`` as an int after checking it is an integer (not a bool) in ``[lo, hi]``.
 

@@ -232,11 +232,14 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
         gltf["images"] = images
         gltf["textures"] = textures
 
+    return _write_document(gltf, b.bytes(), path)
+
+
+def _write_document(gltf: dict, bin_bytes: bytes, path) -> Path:
+    """Write a glTF JSON document and its BIN chunk (a multiple of 4 bytes) as a GLB, atomically."""
     json_bytes = json.dumps(gltf, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
     json_bytes += b" " * _pad4(len(json_bytes))
-    bin_bytes = b.bytes()  # already a multiple of 4
     total = 12 + 8 + len(json_bytes) + 8 + len(bin_bytes)
-
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             f.write(struct.pack("<III", _GLB_MAGIC, 2, total))
@@ -245,6 +248,94 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
             f.write(struct.pack("<II", len(bin_bytes), _CHUNK_BIN))
             f.write(bin_bytes)
     return Path(path)
+
+
+def write_animated_glb(source, path, rig, skins: list, *, name: str = "wind") -> Path:
+    """A treeform GLB skinned to ``rig``'s joints and animated by its keyframes, looping.
+
+    The source's one mesh node becomes a skinned mesh: each primitive gains ``JOINTS_0``
+    (UNSIGNED_SHORT VEC4) and ``WEIGHTS_0`` (FLOAT VEC4, up to four joints per vertex, the
+    weights normalised to sum 1);
+    the joints become a node hierarchy (translations from parent pivot to pivot, rest
+    rotation identity) with inverse bind matrices, and one animation ``name`` drives
+    every joint's rotation (LINEAR, keyframe times from 0 to the period; the last pose
+    equals the first, so a player looping the clip shows no jump).
+
+    Parameters
+    ----------
+    source : str or path-like
+        A GLB written by :func:`write_glb` (one node holding one mesh).
+    path : str or path-like
+        Output file, written atomically.
+    rig : Rig
+    skins : list of (ndarray, ndarray)
+        For each primitive of the mesh, in order: the joints (V_p, K) int and weights
+        (V_p, K) of its vertices, K <= 4.
+
+    Raises
+    ------
+    InputError
+        The source is not a one-mesh GLB, or ``skins`` does not match its primitives.
+    """
+    gltf, bin_chunk = read_glb(source)
+    nodes, meshes = gltf.get("nodes", []), gltf.get("meshes", [])
+    if len(nodes) != 1 or "mesh" not in nodes[0] or len(meshes) != 1:
+        raise InputError(f"{source}: expected a treeform GLB with one node holding one mesh")
+    if any(k in nodes[0] for k in ("matrix", "rotation", "scale", "translation")):
+        raise InputError(f"{source}: the mesh node carries a transform; expected the mesh in world space")
+    prims = meshes[0]["primitives"]
+    if len(skins) != len(prims):
+        raise InputError(f"skins: expected one (joints, weights) pair per primitive ({len(prims)}), got {len(skins)}")
+    J = rig.n_joints
+    if J > 65535:
+        raise InputError(f"rig: at most 65535 joints, got {J}")
+    b = _BinBuilder()
+    b.chunks, b.length = [bin_chunk], len(bin_chunk)
+    b.buffer_views, b.accessors = list(gltf.get("bufferViews", [])), list(gltf.get("accessors", []))
+    if b.length % 4:
+        pad = _pad4(b.length)
+        b.chunks.append(b"\0" * pad)
+        b.length += pad
+    for prim, (jv, wv) in zip(prims, skins):
+        n = gltf["accessors"][prim["attributes"]["POSITION"]]["count"]
+        jv = np.asarray(jv, np.int64).reshape(n, -1) if n else np.zeros((0, 1), np.int64)
+        wv = np.asarray(wv, np.float64).reshape(jv.shape) if n else np.zeros((0, 1))
+        if jv.shape[1] > 4 or (n and (jv.min() < 0 or jv.max() >= J)) or np.any(wv < 0) \
+                or (n and np.any(wv.sum(1) <= 0)):
+            raise InputError(f"skins: a primitive of {n} vertices needs up to 4 joints in [0, {J}) with "
+                             "non-negative weights per vertex")
+        j4 = np.zeros((n, 4), "<u2")
+        j4[:, :jv.shape[1]] = np.where(wv > 0, jv, 0)
+        w4 = np.zeros((n, 4), "<f4")
+        w4[:, :wv.shape[1]] = wv / wv.sum(1, keepdims=True)
+        prim["attributes"]["JOINTS_0"] = b.add_accessor(j4, _UNSIGNED_SHORT, "VEC4", target=_ARRAY_BUFFER)
+        prim["attributes"]["WEIGHTS_0"] = b.add_accessor(w4, _FLOAT, "VEC4", target=_ARRAY_BUFFER)
+    first = len(nodes)
+    children: list[list[int]] = [[] for _ in range(J)]
+    for j in range(1, J):
+        children[rig.parent[j]].append(first + j)
+    for j in range(J):
+        offset = rig.pivots[j] - (rig.pivots[rig.parent[j]] if j else 0.0)
+        node = {"name": f"joint_{j}", "translation": [float(x) for x in offset]}
+        if children[j]:
+            node["children"] = children[j]
+        nodes.append(node)
+    ibm = np.tile(np.eye(4, dtype="<f4"), (J, 1, 1))
+    ibm[:, 3, :3] = -rig.pivots  # column-major: the translation is the last column
+    gltf["skins"] = [{"name": "branches", "joints": list(range(first, first + J)), "skeleton": first,
+                      "inverseBindMatrices": b.add_accessor(ibm.reshape(J, 16), _FLOAT, "MAT4", target=None)}]
+    nodes[0]["skin"] = 0
+    gltf["scenes"][gltf.get("scene", 0)]["nodes"].append(first)
+    times = b.add_accessor(rig.times.astype("<f4")[:, None], _FLOAT, "SCALAR", target=None, min_max=True)
+    samplers, channels = [], []
+    for j in range(J):
+        out = b.add_accessor(rig.rotations[:, j].astype("<f4"), _FLOAT, "VEC4", target=None)
+        samplers.append({"input": times, "output": out, "interpolation": "LINEAR"})
+        channels.append({"sampler": j, "target": {"node": first + j, "path": "rotation"}})
+    gltf["animations"] = [{"name": name, "samplers": samplers, "channels": channels}]
+    gltf["accessors"], gltf["bufferViews"] = b.accessors, b.buffer_views
+    gltf["buffers"] = [{"byteLength": b.length}]
+    return _write_document(gltf, b.bytes(), path)
 
 
 def read_glb(path) -> tuple[dict, bytes]:

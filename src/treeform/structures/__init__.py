@@ -9,6 +9,7 @@ from treeform.structures.mesh import Material, Mesh, MeshPart
 from treeform.structures.photo import Photo
 from treeform.structures.rbv import RadialBoundingVolume
 from treeform.structures.rdm import RadialDistanceMap
+from treeform.structures.rig import Rig
 from treeform.structures.segmentation import Segmentation
 from treeform.structures.skeleton import TreeSkeleton
 
@@ -21,6 +22,7 @@ __all__ = [
     "Photo",
     "RadialBoundingVolume",
     "RadialDistanceMap",
+    "Rig",
     "Segmentation",
     "TreeSkeleton",
 ]
