@@ -75,13 +75,13 @@ def test_trunk_in_mask_finds_the_standing_trunk_not_an_autumn_crown():
 def test_learned_segmenter_on_real_photos(photos_dir):
     from treeform.io import read_photo
 
-    # a lawn the network takes in goes; the trunk's foot stays tree
+    # a lawn the network takes in (16 % of its mask with the shipped weights) goes; the trunk's foot stays
     img = read_photo(photos_dir / "Maclura_pomifera_2.jpg").image
     raw = segment_tree_learned(img, ground=False, trunk=False).labels > 0
     lab = segment_tree_learned(img).labels
     g = ground_line(img)
     below = np.arange(img.shape[0])[:, None] > g[None, :] + 0.02 * img.shape[0]
-    assert (raw & below).sum() > 0.1 * raw.sum() and (lab.astype(bool) & below).sum() < 0.03 * raw.sum()
+    assert (lab.astype(bool) & below).sum() < 0.03 * lab.astype(bool).sum() <= (raw & below).sum()
     assert (lab[int(0.75 * img.shape[0]):] == 2).any()  # the trunk's foot is wood
     # a wide, shaded trunk the network calls foliage is wood
     img = read_photo(photos_dir / "Sequoiadendron_giganteum_1.jpg").image

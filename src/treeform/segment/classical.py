@@ -818,8 +818,8 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
     median width passes 30 % of the crown's widest row is none, and runs shorter than
     :data:`MIN_TRUNK` of the tree's height (fence boards, stakes) are dropped. With ``ground`` (the
     photo's :func:`ground_line`), a trunk that the mask missed below the crown is found
-    too: such runs outside the mask that touch it, stand on the ground line and lie
-    within 10 % of the width from the mask's foot.
+    too: such runs outside the mask that touch it, stand on the ground line, lie within 10 %
+    of the width from the mask's foot and are at most 30 % as wide as the crown.
 
     Parameters
     ----------
@@ -850,7 +850,11 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
         foot = ys >= ys.max() - max(2, int(0.05 * (ys.max() - ys.min() + 1)))
         cand = (~_sky_mask(F) & (np.arange(h)[:, None] < g[None, :])) | m
         standing, _ = _find_trunk(F, cand, g, int(np.median(xs[foot])), near=m, max_offset=0.1)
-        trunk |= standing
+        # below the crown a trunk is far narrower than the crown: a wider piece is ground or rock
+        n, lab, st, _ = cv2.connectedComponentsWithStats((standing & ~m).astype(np.uint8), connectivity=8)
+        wide = st[:, cv2.CC_STAT_WIDTH] > 0.3 * m.sum(1).max()
+        wide[0] = False
+        trunk |= standing & ~wide[lab]
     # a run standing for under MIN_TRUNK of the tree's height cannot be told from a fence post, a
     # stake or a hedge's stems
     rows = np.flatnonzero(m.any(1))
