@@ -815,11 +815,12 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
     its foot, at least 1.5 times as tall as wide and textured, cut where they widen into
     the crown (the rules of :func:`segment_tree`'s trunk). A red or orange autumn crown
     is not upright and does not stand on the foot, so it stays out; a "trunk" whose
-    median width passes 30 % of the crown's widest row is none, and runs shorter than
+    median width passes 30 % of the crown's widest row, or that covers 30 % of the mask, is none, and runs shorter than
     :data:`MIN_TRUNK` of the tree's height (fence boards, stakes) are dropped. With ``ground`` (the
     photo's :func:`ground_line`), a trunk that the mask missed below the crown is found
     too: such runs outside the mask that touch it, stand on the ground line, lie within 10 %
-    of the width from the mask's foot and are at most 30 % as wide as the crown.
+    of the width from the mask's foot, below the mask's lowest pixel in their columns, and
+    are at most 30 % as wide as the crown.
 
     Parameters
     ----------
@@ -850,11 +851,14 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
         foot = ys >= ys.max() - max(2, int(0.05 * (ys.max() - ys.min() + 1)))
         cand = (~_sky_mask(F) & (np.arange(h)[:, None] < g[None, :])) | m
         standing, _ = _find_trunk(F, cand, g, int(np.median(xs[foot])), near=m, max_offset=0.1)
-        # below the crown a trunk is far narrower than the crown: a wider piece is ground or rock
+        # a trunk the mask missed lies below the crown (not in its gaps or beside it), and is far
+        # narrower than the crown: a wider piece is ground or rock
         n, lab, st, _ = cv2.connectedComponentsWithStats((standing & ~m).astype(np.uint8), connectivity=8)
-        wide = st[:, cv2.CC_STAT_WIDTH] > 0.3 * m.sum(1).max()
-        wide[0] = False
-        trunk |= standing & ~wide[lab]
+        lowest = np.where(m.any(0), h - 1 - np.argmax(m[::-1], axis=0), h)
+        under = np.bincount(lab.ravel(), weights=(np.arange(h)[:, None] > lowest[None, :]).ravel(), minlength=n)
+        bad = (st[:, cv2.CC_STAT_WIDTH] > 0.3 * m.sum(1).max()) | (under < 0.8 * st[:, cv2.CC_STAT_AREA])
+        bad[0] = False
+        trunk |= standing & ~bad[lab]
     # a run standing for under MIN_TRUNK of the tree's height cannot be told from a fence post, a
     # stake or a hedge's stems
     rows = np.flatnonzero(m.any(1))
@@ -863,8 +867,8 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
     tall[0] = False
     trunk = tall[lab]
     widths = trunk.sum(1)
-    if trunk.any() and np.median(widths[widths > 0]) > 0.3 * m.sum(1).max():
-        trunk[:] = False  # as wide as the crown: bark-coloured leaves (an autumn crown), not a trunk
+    if trunk.any() and (np.median(widths[widths > 0]) > 0.3 * m.sum(1).max() or trunk.sum() > 0.3 * m.sum()):
+        trunk[:] = False  # as wide as the crown, or most of it: bark-coloured leaves (an autumn crown)
     return trunk
 
 
