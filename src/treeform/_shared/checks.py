@@ -58,6 +58,22 @@ def check_finite(value, name: str) -> float:
     return v
 
 
+MAX_TREE_HEIGHT = 150.0
+"""Metres; the tallest living trees measure about 116 m."""
+
+
+def check_height(value, name: str = "tree_height") -> float:
+    """Return a tree height in metres after checking it is positive and at most :data:`MAX_TREE_HEIGHT`.
+
+    >>> check_height(12)
+    12.0
+    """
+    v = check_positive(value, name)
+    if v > MAX_TREE_HEIGHT:
+        raise InputError(f"{name}: expected a tree height in metres up to {MAX_TREE_HEIGHT:g}, got {value!r}")
+    return v
+
+
 def check_int(value, name: str, lo: int, hi: int) -> int:
     """Return ``value`` as an int after checking it is an integer (not a bool) in ``[lo, hi]``.
 

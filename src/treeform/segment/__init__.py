@@ -25,8 +25,10 @@ def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tr
     usable weights the rules go on alone).
     """
     from treeform._shared.checks import check_choice
+    from treeform._shared.rng import as_rng
 
     check_choice(method, "segmenter", SEGMENTERS)
+    as_rng(seed)  # a negative or non-integer seed is one clear error, whichever segmenter runs
     if method == "learned":
         return segment_tree_learned(image)
     if require_tree:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from treeform._shared.defaults import DEFAULT_SEGMENTER
-from treeform._shared.checks import check_choice, check_int, check_positive
+from treeform._shared.checks import check_choice, check_height, check_int, check_positive
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -101,8 +101,8 @@ class EnvelopeConfig:
             check_int(self.texture_size, "texture_size", 16, 8192)
         if self.tangent_k is not None:
             check_positive(self.tangent_k, "tangent_k")
-        for name in ("tree_height", "depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent",
-                     "leaf_coverage"):
+        check_height(self.tree_height)
+        for name in ("depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent", "leaf_coverage"):
             check_positive(getattr(self, name), name)
         check_positive(self.relief_weight, "relief_weight", allow_zero=True)
         if not 0 <= self.shell_leaves <= 1:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numbers
 from dataclasses import asdict, dataclass, field
 
-from treeform._shared.checks import check_choice, check_int, check_positive
+from treeform._shared.checks import check_choice, check_height, check_int, check_positive
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -148,7 +148,7 @@ class LearnedConfig:
             check_choice(self.species, "species", SPECIES)
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         if self.tree_height is not None:
-            check_positive(self.tree_height, "tree_height")
+            check_height(self.tree_height)
         if self.rbv_level not in (1, 2, 3, 4, 5):
             raise InputError(f"rbv_level: expected 1..5, got {self.rbv_level!r}")
         _check_ints(self, (("max_size", 32, 8192), ("render_size", 32, 4096)))

@@ -6,7 +6,7 @@ import numbers
 from dataclasses import asdict, dataclass
 
 from treeform._shared.defaults import DEFAULT_SEGMENTER
-from treeform._shared.checks import check_choice, check_int, check_known_options, check_positive
+from treeform._shared.checks import check_choice, check_height, check_int, check_known_options
 from treeform._shared.errors import InputError
 
 SPECIES_PRIORS = {
@@ -81,7 +81,7 @@ class SynthesisConfig:
         check_int(self.levels, "levels", 1, 3)
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         check_int(self.max_size, "max_size", 32, 8192)
-        check_positive(self.tree_height, "tree_height")
+        check_height(self.tree_height)
         if not 5 <= self.fov_y <= 120:
             raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
         check_int(self.search_size, "search_size", 32, 2048)

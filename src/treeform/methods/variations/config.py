@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from treeform._shared.defaults import DEFAULT_SEGMENTER
-from treeform._shared.checks import check_choice
+from treeform._shared.checks import check_choice, check_height
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -180,8 +180,8 @@ class CloudConfig:
                 raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {v!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InputError(f"seed: expected a non-negative integer, got {self.seed!r}")
-        for name in ("compactness", "straightness", "min_edge", "endpoint_tolerance", "max_bulge", "depth_ratio",
-                     "tree_height"):
+        check_height(self.tree_height)
+        for name in ("compactness", "straightness", "min_edge", "endpoint_tolerance", "max_bulge", "depth_ratio"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < float("inf"):
                 raise InputError(f"{name}: expected a positive number, got {v!r}")

@@ -56,7 +56,8 @@ MORPH_STAGES = ("library", "morph", "export")
 
 def vary_stages(n: int) -> tuple:
     """Stage names :func:`vary` reports for ``n`` variations (for a progress bar's total)."""
-    return ("library",) + tuple(f"variation {i + 1}/{n}" for i in range(max(0, int(n)))) + ("export",)
+    k = int(n) if 1 <= int(n) <= 10_000 else 0  # out of range: vary() says so before any work
+    return ("library",) + tuple(f"variation {i + 1}/{k}" for i in range(k)) + ("export",)
 
 
 def _config(config: VariationsConfig | None, options: dict) -> VariationsConfig:
