@@ -6,7 +6,8 @@ Paper 003 (Fig. 11) animates its trees with rod dynamics. Here each joint of
 ``L`` (Euler–Bernoulli), moment of inertia ``I = sum m_i d_i**2`` over the wood it carries
 (pipe-model volume times wood density, ``d_i`` the distance to the pivot), aerodynamic drag
 ``1/2 rho Cd A v(t)**2`` on the branch and leaf area ``A`` it carries (scaled per tree so that
-the trunk's top moves :data:`SWAY_REF` of the height in the mean of a 10 m/s wind), damping ratio ``zeta``.
+the trunk's top moves :data:`SWAY_REF` of the height in the mean of a 10 m/s wind), structural damping
+plus the aerodynamic damping of that drag.
 The wind is a mean speed plus gusts, a sum of harmonics of the loop's period with a
 Kolmogorov-like spectrum that travel downwind at the mean speed, so the force on every joint
 is exactly periodic. Its steady response is solved per harmonic (the linear oscillator's
@@ -35,12 +36,15 @@ AIR_DENSITY = 1.2
 DRAG = 0.6
 """Drag coefficient of branches and foliage (leaves streamline in strong wind: lower)."""
 DAMPING = 0.12
-"""Damping ratio of every joint (structural plus aerodynamic)."""
+"""Structural damping ratio of every joint (aerodynamic damping comes on top, from its drag)."""
 GUSTS = 0.35
 """Standard deviation of the gusts relative to the mean wind speed (turbulence intensity)."""
+STATIC_MAX = 0.02
+"""Largest mean bend of one joint in a 10 m/s wind, radians (about 1.1 degrees; branches nest ten
+joints deep, and their bends add up)."""
 COHERENT = 4
 """Gust harmonics up to this one (periods of a quarter loop and longer) are coherent over the tree."""
-MAX_BEND = 0.35
+MAX_BEND = 0.12
 """Largest bend of one joint, radians: the linear response is compressed smoothly towards it."""
 SWAY_REF = 0.01
 """Static displacement of the trunk's top in the mean of a 10 m/s wind, as a share of the tree's
@@ -66,7 +70,8 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def joint_mechanics(skeleton: TreeSkeleton, joints: TreeJoints, leaf_area=None) -> dict:
-    """Per joint: stiffness (N m/rad), moment of inertia (kg m²) and wind lever ``sum A_i d_i`` (m³).
+    """Per joint: stiffness (N m/rad), moment of inertia (kg m²), wind lever ``sum A_i d_i`` (m³) and
+    ``sum A_i d_i**2`` (m⁴, for the aerodynamic damping).
 
     ``leaf_area`` (N,) is the leaf area (m²) hanging at each node (default none).
     """
@@ -85,18 +90,20 @@ def joint_mechanics(skeleton: TreeSkeleton, joints: TreeJoints, leaf_area=None) 
     carried = np.eye(J, dtype=bool)
     for j in range(J - 1, 0, -1):
         carried[joints.parent[j]] |= carried[j]
-    inertia, lever = np.zeros(J), np.zeros(J)
+    inertia, lever, lever2 = np.zeros(J), np.zeros(J), np.zeros(J)
     for j in range(J):
         sub = carried[j][joints.node_joint]
         d = np.linalg.norm(skeleton.positions[sub] - joints.pivots[j], axis=1)
         inertia[j] = float(np.sum(mass[sub] * d * d))
         lever[j] = float(np.sum(drag_area[sub] * d))
+        lever2[j] = float(np.sum(drag_area[sub] * d * d))
     # the segment a joint owns: from its pivot to its farthest own node
     length = np.array([max(np.linalg.norm(skeleton.positions[joints.node_joint == j] - joints.pivots[j], axis=1).max(),
                            1e-3) for j in range(J)])
     radius = np.maximum(skeleton.radius[joints.pivot_node], 1e-4)
     stiffness = YOUNG_MODULUS * np.pi * radius ** 4 / (4.0 * length)
-    return {"stiffness": stiffness, "inertia": np.maximum(inertia, 1e-9), "lever": lever, "length": length}
+    return {"stiffness": stiffness, "inertia": np.maximum(inertia, 1e-9), "lever": lever, "lever2": lever2,
+            "length": length}
 
 
 def check_wind(wind, direction, seconds, fps, seed):
@@ -173,16 +180,25 @@ def wind_sway(skeleton: TreeSkeleton, joints: TreeJoints, *, wind: float = 6.0, 
     height = float(np.ptp(skeleton.positions[:, 1])) or 1.0
     static10 = 0.5 * AIR_DENSITY * DRAG * 100.0 * mech["lever"][trunk] / mech["stiffness"][trunk]
     reach = float(np.sum(static10 * np.linalg.norm(top - joints.pivots[trunk], axis=1)))
-    if reach > 0:
-        q *= SWAY_REF * height / reach
+    scale = SWAY_REF * height / reach if reach > 0 else 1.0
+    q *= scale
     force_down = q * (1.0 + gust) ** 2 * mech["lever"][:, None]
     force_side = 0.3 * q * flutter * mech["lever"][:, None]
-    omega = np.sqrt(mech["stiffness"] / mech["inertia"])
+    # no joint is softer than its load allows: a branch whose mean bend at 10 m/s would pass
+    # STATIC_MAX (thin twigs under a large card area) is stiffened to it, as real branches grow
+    # thick enough to carry their leaves
+    q10 = q * (10.0 / wind) ** 2
+    stiffness = np.maximum(mech["stiffness"], q10 * mech["lever"] / STATIC_MAX)
+    omega = np.sqrt(stiffness / mech["inertia"])
+    # aerodynamic damping: the drag on a moving branch resists its motion (linearised about the
+    # mean wind, same drag scale); leafy, light branches are damped most
+    c_aero = scale * AIR_DENSITY * DRAG * wind * mech["lever2"]
+    zeta = DAMPING + c_aero / (2.0 * np.sqrt(stiffness * mech["inertia"]))
     Omega = 2 * np.pi * np.fft.rfftfreq(S, d=period / S)
 
     def respond(moment):
         h = 1.0 / (mech["inertia"][:, None] * (omega[:, None] ** 2 - Omega[None, :] ** 2
-                                               + 2j * DAMPING * omega[:, None] * Omega[None, :]))
+                                               + 2j * zeta[:, None] * omega[:, None] * Omega[None, :]))
         theta = np.fft.irfft(np.fft.rfft(moment, axis=1) * h, n=S, axis=1)
         return MAX_BEND * np.tanh(theta / MAX_BEND)
 
