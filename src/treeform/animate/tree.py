@@ -29,13 +29,10 @@ def _primitives(glb: Path):
     return out
 
 
-def _moved(rig, joint, points, k, weight=None):
-    """Points bound to ``joint`` ((P,) or (P, 2) with ``weight``) at keyframe ``k`` (linear blend skinning)."""
-    pose = rig.pose(k)
-    if weight is None:
-        m = pose[joint]
-    else:
-        m = np.einsum("pk,pkij->pij", weight, pose[joint])
+def _moved(pose, joint, points, weight=None):
+    """Points bound to ``joint`` ((P,) or (P, 2) with ``weight``) under ``pose`` (:meth:`Rig.pose`;
+    linear blend skinning)."""
+    m = pose[joint] if weight is None else np.einsum("pk,pkij->pij", weight, pose[joint])
     return np.einsum("nij,nj->ni", m[:, :3, :3], points) + m[:, :3, 3]
 
 
@@ -62,13 +59,14 @@ def sway_checks(skeleton, rig, joints, *, wood=None, step: int = 1) -> dict:
         e_rest = np.linalg.norm(wp[e[:, 0]] - wp[e[:, 1]], axis=1)
         ok = e_rest > 1e-6
     for k in range(0, len(rig.times), step):
-        p = _moved(rig, joints.node_joint, pos, k)
+        pose = rig.pose(k)
+        p = _moved(pose, joints.node_joint, pos)
         length = np.linalg.norm(p[1:] - p[par[1:]], axis=1)
         stretch = max(stretch, float(np.max(np.abs(length[good] / rest[good] - 1.0), initial=0.0)))
         trunk_d = np.maximum(trunk_d, np.linalg.norm(p[trunk] - pos[trunk], axis=1))
         tip_d = np.maximum(tip_d, np.linalg.norm(p[tips] - pos[tips], axis=1))
         if wood is not None:
-            q = _moved(rig, wj, wp, k, ww)
+            q = _moved(pose, wj, wp, ww)
             le = np.linalg.norm(q[e[ok, 0]] - q[e[ok, 1]], axis=1)
             mesh_stretch = max(mesh_stretch, float(np.max(np.abs(le / e_rest[ok] - 1.0), initial=0.0)))
     bend = np.degrees(2 * np.arccos(np.clip(np.abs(rig.rotations[..., 3]), 0, 1))).max(axis=0)  # (J,)

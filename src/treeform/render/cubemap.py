@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from treeform._shared.checks import check_array
+from treeform._shared.checks import check_array, check_finite
 from treeform._shared.errors import InputError, RenderError
 from treeform.render.context import get_context
 from treeform.structures.rdm import CUBE_FACE_MATRICES
@@ -129,12 +129,7 @@ def render_radial_cubemap(positions: np.ndarray, faces: np.ndarray, center, *, v
         h = check_array(values, "values", ndim=1, dtype_kind="iuf", shape=(len(pos),)).astype(np.float32)
         if len(h) and (h.min() < 0 or h.max() > 1):
             raise InputError(f"values: expected values in [0, 1], got range [{h.min():.4g}, {h.max():.4g}]")
-    try:
-        rho = float(rho)
-    except (TypeError, ValueError):
-        raise InputError(f"rho: expected a number, got {rho!r}") from None
-    if not math.isfinite(rho):
-        raise InputError(f"rho: expected a finite number, got {rho!r}")
+    rho = check_finite(rho, "rho")
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 1:
         raise InputError(f"resolution: expected a positive integer, got {resolution!r}")
     res = int(resolution)

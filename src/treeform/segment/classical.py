@@ -807,7 +807,8 @@ def mask_to_segmentation(mask: np.ndarray, image: np.ndarray) -> Segmentation:
     return Segmentation(labels, m.astype(np.float32))
 
 
-def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | None = None) -> np.ndarray:
+def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | None = None,
+                  focus: np.ndarray | None = None) -> np.ndarray:
     """The trunk of a tree mask: upright bark that stands on the tree's foot.
 
     Shape first, then colour: vertical runs of bark-coloured pixels (or pixels much
@@ -819,14 +820,17 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
     :data:`MIN_TRUNK` of the tree's height (fence boards, stakes) are dropped. With ``ground`` (the
     photo's :func:`ground_line`), a trunk that the mask missed below the crown is found
     too: such runs outside the mask that touch it, stand on the ground line, lie within 10 %
-    of the width from the mask's foot, below the mask's lowest pixel in their columns, and
-    are at most 30 % as wide as the crown.
+    of the width from the mask's foot, below the mask's lowest pixel in their columns, are
+    at most 30 % as wide as the crown and, with a ``focus`` map, at least half as sharp as
+    the crown (a trunk of a blurred tree behind is not this tree's).
 
     Parameters
     ----------
     image : ndarray, shape (H, W, 3), uint8
     mask : ndarray, shape (H, W), bool
     ground : ndarray, shape (W,), int, optional
+    focus : ndarray, shape (H, W), optional
+        Local sharpness (:func:`treeform.learn.infer.focus_map`).
 
     Returns
     -------
@@ -857,6 +861,9 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
         lowest = np.where(m.any(0), h - 1 - np.argmax(m[::-1], axis=0), h)
         under = np.bincount(lab.ravel(), weights=(np.arange(h)[:, None] > lowest[None, :]).ravel(), minlength=n)
         bad = (st[:, cv2.CC_STAT_WIDTH] > 0.3 * m.sum(1).max()) | (under < 0.8 * st[:, cv2.CC_STAT_AREA])
+        if focus is not None:
+            sharp = 0.5 * float(np.median(focus[m]))
+            bad |= np.array([k > 0 and np.median(focus[lab == k]) < sharp for k in range(n)])
         bad[0] = False
         trunk |= standing & ~bad[lab]
     # a run standing for under MIN_TRUNK of the tree's height cannot be told from a fence post, a

@@ -231,7 +231,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     ModelError
         The weights file is missing or unreadable.
     """
-    from treeform.learn.infer import Segmenter, _components, focus_map, main_tree
+    from treeform.learn.infer import Segmenter, focus_map, main_tree
 
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -281,15 +281,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     if trunk:  # the trunk is wood, also where the network left it out below the crown
         from treeform.segment.classical import trunk_in_mask
 
-        stem = trunk_in_mask(img, tree, ground=g if ground else None)
-        out = stem & ~tree
-        if out.any():  # a trunk below the crown is as sharp as the crown; one behind it is not
-            n, lab_out, _ = _components(out)
-            sharp = np.median(focus[tree])
-            for k in range(1, n):
-                part = lab_out == k
-                if np.median(focus[part]) < 0.5 * sharp:
-                    stem &= ~part
+        stem = trunk_in_mask(img, tree, ground=g if ground else None, focus=focus)
         labels[stem] = 2
         p_tree = np.where(stem & ~tree, 1.0, p_tree)
         tree = tree | stem

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from treeform._shared.checks import check_finite
 from treeform._shared.errors import InputError
 
 __all__ = ["LSystem", "Module", "parse_lsystem", "load_preset", "preset_names", "PRESET_DIR", "MAX_MODULES"]
@@ -323,13 +324,7 @@ def parse_lsystem(text: str, *, defines: dict | None = None, name: str = "") -> 
         for k, v in defines.items():
             if k not in defs:
                 raise InputError(f"{where0}: unknown define {k!r} (known: {', '.join(sorted(defs)) or 'none'})")
-            try:
-                v = float(v)
-            except (TypeError, ValueError):
-                raise InputError(f"{where0}: define {k!r} must be a number, got {v!r}") from None
-            if not math.isfinite(v):
-                raise InputError(f"{where0}: define {k!r} must be finite")
-            defs[k] = v
+            defs[k] = check_finite(v, f"{where0}: define {k!r}")
     g.update(defs)
     if axiom_text is None:
         raise InputError(f"{where0}: no 'axiom:' line")
