@@ -39,3 +39,9 @@ class ModelError(TreeformError):
     """A shipped network's weights file is missing or unreadable (rebuild with ``make weights``)."""
 
     exit_code = 6
+
+
+class SfmError(TreeformError):
+    """Structure from motion could not register the photos (too few, too little overlap, degenerate)."""
+
+    exit_code = 7

@@ -1,4 +1,4 @@
-"""``treeform dataset generate`` and ``treeform dataset show``: synthetic training data (seed 003 §4.2)."""
+"""``treeform dataset generate``, ``show`` and ``capture``: synthetic training data (seed 003 §4.2), test captures."""
 
 from __future__ import annotations
 
@@ -57,3 +57,25 @@ def show_cmd(
 
     path = run_api(show_dataset, directory, n=n, out=out, stages=("load", "sheet"))
     typer.echo(f"contact sheet: {path}")
+
+
+@dataset_app.command("capture")
+def capture_cmd(
+    out: Path = typer.Argument(..., metavar="OUT", help="Capture folder (images/ and truth/)."),
+    views: int = typer.Option(24, "--views", help="Number of photos on the circle around the tree (3-360)."),
+    size: int = typer.Option(1024, "--size", help="Image width in pixels (landscape 4:3)."),
+    species: str = typer.Option("oak", "--species", help="acacia, apple, willow, maple, birch, oak or pine."),
+    seed: int = typer.Option(0, "--seed", help="Seeds the tree, the park, the cameras and the noise."),
+    model: Optional[Path] = typer.Option(None, "--model", help="A GLB tree instead of a grown one (no skeleton truth)."),
+    clutter: bool = typer.Option(True, "--clutter/--no-clutter", help="Benches, rocks, bins, kiosks ... in the park."),
+):
+    """Photograph a grown tree in a 3D park from cameras around it, with ground truth (multi-view test data).
+
+    Writes OUT/images/view_00.jpg ... (JPEG with phone-like EXIF) and OUT/truth/ (cameras.json,
+    labels/, skeleton.json, tree.glb, meta.json).
+    """
+    from treeform.dataset.capture import STAGES, synthetic_capture
+
+    res = run_api(synthetic_capture, out, views=views, size=size, species=species, seed=seed, model=model,
+                  clutter=clutter, stages=STAGES, inputs=[("--model", model)])
+    typer.echo(f"{len(res.images)} views of a {res.height:.1f} m tree in {res.seconds:.1f} s -> {res.out}")

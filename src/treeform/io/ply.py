@@ -14,7 +14,10 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.skeleton import TreeSkeleton
 
-__all__ = ["write_skeleton_ply", "read_skeleton_ply"]
+__all__ = ["write_skeleton_ply", "read_skeleton_ply", "write_points_ply", "read_points_ply"]
+
+POINT_LABELS = {0: "background", 1: "branch", 2: "leaf"}
+"""``label`` values of :func:`write_points_ply` (seed 002 §4.2's point partition)."""
 
 _VERTEX_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("radius", "<f4"), ("order", "<i4")])
 _EDGE_DTYPE = np.dtype([("vertex1", "<i4"), ("vertex2", "<i4")])
@@ -25,6 +28,68 @@ _PLY_TYPES = {
     "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }
+
+
+def write_points_ply(path, points, colors, labels) -> Path:
+    """Write a labelled, coloured point cloud as a binary little-endian PLY, atomically.
+
+    Elements: ``vertex`` with ``x y z`` (float32), ``red green blue`` (uchar) and ``label``
+    (uchar, :data:`POINT_LABELS`: 0 background, 1 branch, 2 leaf).
+
+    Parameters
+    ----------
+    path : str or path-like
+    points : ndarray, shape (N, 3)
+    colors : ndarray, shape (N, 3), uint8
+    labels : ndarray, shape (N,), uint8
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "p.ply")
+    >>> _ = write_points_ply(p, [[0, 1, 2.0]], [[255, 0, 0]], [1])
+    >>> read_points_ply(p)[2].tolist()
+    [1]
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    n = len(pts)
+    cols = np.asarray(colors).reshape(-1, 3)
+    labs = np.asarray(labels).reshape(-1)
+    if len(cols) != n or len(labs) != n:
+        raise InputError(f"write_points_ply: {n} points, {len(cols)} colours, {len(labs)} labels")
+    dt = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1"),
+                   ("label", "u1")])
+    verts = np.empty(n, dt)
+    verts["x"], verts["y"], verts["z"] = pts.T
+    verts["red"], verts["green"], verts["blue"] = np.clip(cols, 0, 255).astype(np.uint8).T
+    verts["label"] = labs.astype(np.uint8)
+    header = "\n".join([
+        "ply", "format binary_little_endian 1.0",
+        "comment treeform points: metres, +Y up; label 0 background, 1 branch, 2 leaf",
+        f"element vertex {n}",
+        "property float x", "property float y", "property float z",
+        "property uchar red", "property uchar green", "property uchar blue", "property uchar label",
+        "end_header",
+    ]) + "\n"
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(header.encode("ascii"))
+            f.write(verts.tobytes())
+    return Path(path)
+
+
+def read_points_ply(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read :func:`write_points_ply`'s file: points (N, 3), colours (N, 3) uint8, labels (N,)."""
+    path = Path(path)
+    data = path.read_bytes()
+    elements, start = _parse_header(path, data)
+    if not elements or elements[0][0] != "vertex" or \
+            list(elements[0][2].names)[:7] != ["x", "y", "z", "red", "green", "blue", "label"]:
+        raise InputError(f"{path}: not a treeform points PLY")
+    _name, n, dt = elements[0]
+    v = np.frombuffer(data, dt, count=n, offset=start)
+    return (np.column_stack([v["x"], v["y"], v["z"]]).astype(np.float64),
+            np.column_stack([v["red"], v["green"], v["blue"]]), v["label"].copy())
 
 
 def write_skeleton_ply(skeleton: TreeSkeleton, path) -> Path:

@@ -22,6 +22,13 @@ METHODS = {
         "Guénard et al., Reconstructing plants in 3D from a single image using analysis-by-synthesis, ISVC (2013)",
         "treeform.methods.synthesis.pipeline:reconstruct",
     ),
+    "multiview": (
+        "Several photos around one tree -> 3D tree: structure from motion (pycolmap), per-view tree mattes, "
+        "their visual hull partitioned into branch and leaf points, the visible branch graph, hidden "
+        "branches grown into the leaf volume",
+        "Tan et al., Image-based tree modeling, ACM TOG 26(3), SIGGRAPH (2007)",
+        "treeform.methods.multiview.pipeline:reconstruct_multiview",
+    ),
     "variations": (
         "New RGBA tree images from a library of RGBA trees (contour synthesis + mean value coordinates); "
         "photo -> RGBA billboard by alpha matting; picture -> billboard cloud (alpha-tested GLB)",

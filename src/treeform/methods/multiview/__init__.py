@@ -1,0 +1,1 @@
+"""Several photos -> 3D tree (seed 002, Tan et al. 2007): see :mod:`.pipeline`."""

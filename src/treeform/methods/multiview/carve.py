@@ -1,0 +1,240 @@
+"""Tree points from many masks: an octree visual hull, thickness and label votes (seed 002 §4.1–4.2).
+
+Seed 002 densifies its SfM points (quasi-dense matching) and partitions them into branch,
+leaf and background by the per-view tree mattes. Here the tree's points come from the
+mattes themselves: the visual hull of the per-view tree masks, carved on an octree
+(a cell survives while its projection reaches a tree pixel in every view that sees it,
+up to a tolerated share of views whose mask missed it), so thin branches seen against
+the sky carve into thin tubes and the crown into its volume. Each surviving cell gets
+
+- a **thickness**: the median, over the views, of the silhouette's half-width near the
+  cell's projection (the largest distance to the silhouette's edge within a few pixels),
+  in metres at the cell's depth (a branch of radius r seen against the sky gives about r;
+  a crown gives metres; the median, not the smallest, since a porous crown shows the sky
+  through a gap from some views);
+- **votes**: the share of views whose label at the cell's projection is wood;
+- a **colour**: the median image colour over the views that label it tree.
+
+The point partition (branch / leaf) of §4.2 combines both: thin or wood-voted cells are
+branch, the rest leaf.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+
+__all__ = ["CarvedTree", "carve_tree"]
+
+
+@dataclass
+class CarvedTree:
+    """Surviving octree cells of the visual hull.
+
+    Attributes
+    ----------
+    points : ndarray, shape (P, 3)
+        Cell centres in the world of the cameras.
+    size : ndarray, shape (P,)
+        Cell edge lengths.
+    thickness : ndarray, shape (P,)
+        Half-width of the hull through the cell (metres; see the module notes).
+    wood : ndarray, shape (P,)
+        Share of the seeing views that label the cell's projection wood.
+    seen : ndarray, shape (P,), int
+        Number of views whose frame holds the cell.
+    colors : ndarray, shape (P, 3), uint8
+    """
+
+    points: np.ndarray
+    size: np.ndarray
+    thickness: np.ndarray
+    wood: np.ndarray
+    seen: np.ndarray
+    colors: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def subset(self, keep: np.ndarray) -> "CarvedTree":
+        return CarvedTree(self.points[keep], self.size[keep], self.thickness[keep], self.wood[keep],
+                          self.seen[keep], self.colors[keep])
+
+
+def _project(points, w2c, K):
+    pc = points @ w2c[:3, :3].T + w2c[:3, 3]
+    z = pc[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = (pc @ K.T)[:, :2] / z[:, None]
+    return uv, z
+
+
+def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float = 0.12, close_px: int = 2,
+               width_px: int = 6, images=None, progress=None) -> CarvedTree:
+    """Carve the visual hull of the per-view tree masks on an octree.
+
+    Parameters
+    ----------
+    K : ndarray, shape (C, 3, 3)
+        Intrinsics in pixels of ``labels``.
+    cam_to_world : ndarray, shape (C, 4, 4)
+        OpenCV camera axes (x right, y down, z forward).
+    labels : list of C ndarrays, shape (H_i, W_i), uint8
+        0 background, 1 foliage, 2 wood (a :class:`~treeform.structures.Segmentation`'s labels).
+    box : (lo, hi) pair of 3-vectors
+        The region to carve (world).
+    voxel : float
+        Edge of the finest cells. The octree stops refining a cell that lies wholly inside
+        the hull (its interior needs no finer cells), and one where the hull is wide
+        (thicker than three cell edges: the crown's surface, drawn with leaf cards anyway);
+        only thin parts — branches — reach ``voxel``.
+    tolerance : float
+        Share of the views that see a cell whose mask may miss it (segmentation errors).
+    close_px : int
+        Morphological closing of each tree mask (pixels): the gaps between leaves.
+    width_px : int
+        Window (pixels, each side) over which a silhouette's width is read: a point near
+        the edge of a wide region is wide.
+    images : list of C ndarrays, shape (H_i, W_i, 3), uint8, optional
+        For the cells' colours (grey without).
+    progress : callable, optional
+        ``progress(level, n_levels)``.
+
+    Returns
+    -------
+    CarvedTree
+    """
+    from scipy.ndimage import binary_closing, distance_transform_edt, maximum_filter
+
+    K = np.asarray(K, np.float64).reshape(-1, 3, 3)
+    c2w = np.asarray(cam_to_world, np.float64).reshape(-1, 4, 4)
+    if len(K) != len(c2w) or len(labels) != len(K):
+        raise InputError(f"carve_tree: {len(K)} intrinsics, {len(c2w)} poses, {len(labels)} label images")
+    if len(K) < 2:
+        raise InputError("carve_tree: needs at least 2 views")
+    if not voxel > 0:
+        raise InputError(f"voxel: expected a positive size, got {voxel!r}")
+    lo, hi = (np.asarray(b, np.float64).reshape(3) for b in box)
+    if not np.all(hi > lo):
+        raise InputError("box: expected lo < hi on every axis")
+    w2c = np.linalg.inv(c2w)
+    min_seen = max(2, int(np.ceil(0.5 * len(K))))  # the tree is in every photo: a cell most views miss is not it
+    focal = 0.5 * (K[:, 0, 0] + K[:, 1, 1])
+    # distance (pixels) from each pixel to the nearest tree pixel (0 inside) and into the tree (0 outside)
+    dist_out, dist_in, width, labs = [], [], [], []
+    disk = _disk(close_px)
+    for lab in labels:
+        lab = np.asarray(lab)
+        tree = lab > 0
+        if close_px > 0:
+            tree = binary_closing(np.pad(tree, close_px), disk)[close_px:-close_px, close_px:-close_px] | tree
+        dist_out.append(distance_transform_edt(~tree).astype(np.float32) if tree.any() else
+                        np.full(tree.shape, np.inf, np.float32))
+        d_in = distance_transform_edt(tree).astype(np.float32)
+        dist_in.append(d_in)
+        # the silhouette's half-width near each pixel (outside it too: a cell straddling the edge of a
+        # wide region is wide, one beside a thin branch is thin)
+        width.append(maximum_filter(d_in, size=2 * width_px + 1).astype(np.float32))
+        labs.append(lab)
+
+    # level 0: a cubic grid of about 24 cells along the longest side
+    ext = hi - lo
+    edge0 = float(ext.max()) / 24.0
+    n_levels = max(0, int(np.ceil(np.log2(edge0 / voxel))))
+    edge0 = voxel * 2.0 ** n_levels
+    counts = np.maximum(np.ceil(ext / edge0).astype(int), 1)
+    g = np.stack(np.meshgrid(*[np.arange(c) for c in counts], indexing="ij"), -1).reshape(-1, 3)
+    centers = lo + (g + 0.5) * edge0
+    edge = edge0
+    done_pts, done_size = [], []
+    for level in range(n_levels + 1):
+        if progress is not None:
+            progress(level, n_levels + 1)
+        n = len(centers)
+        if n == 0:
+            break
+        seen = np.zeros(n, np.int32)
+        hit = np.zeros(n, np.int32)
+        inside = np.zeros(n, np.int32)
+        wide = np.full((len(K), n), np.nan, np.float32)
+        half = 0.5 * np.sqrt(3.0) * edge
+        for i in range(len(K)):
+            uv, z = _project(centers, w2c[i], K[i])
+            h, w = dist_out[i].shape
+            ok = (z > half) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+            if not ok.any():
+                continue
+            col = np.clip(uv[ok, 0].astype(int), 0, w - 1)
+            row = np.clip(uv[ok, 1].astype(int), 0, h - 1)
+            r_px = focal[i] * half / z[ok] + 0.75
+            seen[ok] += 1
+            hit[ok] += dist_out[i][row, col] <= r_px
+            inside[ok] += dist_in[i][row, col] > r_px
+            wide[i, ok] = width[i][row, col] * z[ok] / focal[i]
+        keep = (seen >= min_seen) & (hit >= np.ceil((1.0 - tolerance) * seen))
+        done = keep & ((inside >= np.ceil((1.0 - tolerance) * seen)) | (_nanmedian(wide) > 3.0 * edge))
+        if level == n_levels:
+            break
+        # cells wholly inside the hull, or where it is wide, stay as they are; the rest split into 8
+        done_pts.append(centers[done])
+        done_size.append(np.full(int(done.sum()), edge))
+        split = centers[keep & ~done]
+        q = edge / 4.0
+        offs = np.array([[dx, dy, dz] for dx in (-q, q) for dy in (-q, q) for dz in (-q, q)])
+        centers = (split[:, None, :] + offs[None]).reshape(-1, 3)
+        edge /= 2.0
+    last = centers[keep] if len(centers) else np.zeros((0, 3))
+    points = np.concatenate(done_pts + [last]) if done_pts else last
+    size = np.concatenate(done_size + [np.full(len(last), edge)]) if done_size else np.full(len(last), edge)
+    return _describe(points, size, K, w2c, focal, width, labs, images)
+
+
+def _nanmedian(a: np.ndarray) -> np.ndarray:
+    """Median over axis 0 ignoring NaN (NaN where a column is all NaN), without warnings."""
+    import warnings
+
+    if a.shape[1] == 0:
+        return np.zeros(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(a, axis=0)
+
+
+def _disk(r: int) -> np.ndarray:
+    y, x = np.mgrid[-r:r + 1, -r:r + 1]
+    return x * x + y * y <= r * r
+
+
+def _describe(points, size, K, w2c, focal, width, labs, images) -> CarvedTree:
+    n = len(points)
+    thick = np.full((len(K), n), np.nan, np.float32)
+    wood = np.zeros(n)
+    seen = np.zeros(n, np.int32)
+    cols = [] if images is not None else None
+    for i in range(len(K)):
+        uv, z = _project(points, w2c[i], K[i])
+        h, w = labs[i].shape
+        ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        col = np.clip(np.nan_to_num(uv[:, 0]).astype(int), 0, w - 1)
+        row = np.clip(np.nan_to_num(uv[:, 1]).astype(int), 0, h - 1)
+        d = width[i][row, col] * z / focal[i]
+        thick[i, ok] = d[ok]
+        lab = labs[i][row, col]
+        seen += ok
+        wood += ok & (lab == 2)
+        if cols is not None:
+            img = images[i]
+            c = img[np.clip(row * img.shape[0] // h, 0, img.shape[0] - 1),
+                    np.clip(col * img.shape[1] // w, 0, img.shape[1] - 1)].astype(np.float32)
+            c[~(ok & (lab > 0))] = np.nan
+            cols.append(c)
+    thick = np.nan_to_num(_nanmedian(thick), nan=0.0)
+    if cols is not None and n:
+        med = _nanmedian(np.stack(cols))
+        colors = np.nan_to_num(med, nan=128.0).clip(0, 255).astype(np.uint8)
+    else:
+        colors = np.full((n, 3), 128, np.uint8)
+    return CarvedTree(points, size, thick, wood / np.maximum(seen, 1), seen, colors)

@@ -1,0 +1,59 @@
+"""Configuration of the multi-view route (seed 002)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from treeform._shared.checks import check_choice, check_height, check_int, check_positive
+
+__all__ = ["MultiviewConfig"]
+
+
+@dataclass
+class MultiviewConfig:
+    """Options of :func:`treeform.methods.multiview.pipeline.reconstruct_multiview`."""
+
+    seed: int = 0
+    """Random seed (growth of the hidden branches, leaves)."""
+    height: float | None = None
+    """Tree height in metres; None: metric scale from the cameras at eye height (``eye_height``)."""
+    eye_height: float = 1.6
+    """Height of the camera above the ground in metres when no ``height`` is given (a phone at eye level)."""
+    max_size: int = 1024
+    """Long side of the photos for structure from motion (pixels)."""
+    mask_size: int = 512
+    """Long side of the photos for segmentation and carving (pixels)."""
+    segmenter: str = "learned"
+    """Tree matting per view: 'learned' (the network) or 'classical' (the colour rules)."""
+    cells: int = 400
+    """Finest carving cell = tree height / cells."""
+    tolerance: float = 0.25
+    """Share of the views whose mask may miss a piece of the tree (occluders, segmentation errors)."""
+    leaves: int = 6000
+    """Leaf clusters."""
+    lod: str = "medium"
+    """Triangle budget (see treeform.geometry.LOD_PRESETS)."""
+
+    def validate(self) -> "MultiviewConfig":
+        from treeform._shared.defaults import SEGMENTERS
+        from treeform._shared.rng import as_rng
+        from treeform.geometry import LOD_PRESETS
+
+        as_rng(self.seed)
+        if self.height is not None:
+            self.height = check_height(self.height, "height")
+        check_positive(self.eye_height, "eye_height")
+        check_int(self.max_size, "max_size", 128, 8192)
+        check_int(self.mask_size, "mask_size", 64, 4096)
+        check_choice(self.segmenter, "segmenter", SEGMENTERS)
+        check_int(self.cells, "cells", 50, 2000)
+        if not 0.0 <= float(self.tolerance) < 0.5:
+            from treeform._shared.errors import InputError
+
+            raise InputError(f"tolerance: expected a share in [0, 0.5), got {self.tolerance!r}")
+        check_int(self.leaves, "leaves", 0, 1_000_000)
+        check_choice(self.lod, "lod", tuple(LOD_PRESETS))
+        return self
+
+    def to_dict(self) -> dict:
+        return asdict(self)

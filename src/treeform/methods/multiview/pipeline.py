@@ -1,0 +1,322 @@
+"""Several photos -> 3D tree (seed 002: Tan et al., Image-based tree modeling, SIGGRAPH 2007).
+
+Stages, each one call into a domain folder or a sibling module:
+
+1. **photos + SfM** (§3): :func:`treeform.sfm.load_photos`, :func:`treeform.sfm.run_sfm` —
+   pycolmap on the CPU with the EXIF focal prior; the largest model.
+2. **frame** (§3): up = the cameras' mean up, the ground plane from the lowest points,
+   metres from ``height`` or from the cameras' eye height, origin at the trunk's foot.
+3. **matting** (§4.1): the project's segmenter on every registered view.
+4. **points and partition** (§4.1–4.2): :func:`carve.carve_tree` — the tree's points as
+   the visual hull of the mattes, each with the silhouette half-width seen from the views
+   and wood votes; thin or wood-voted points are branch, the rest leaf.
+5. **visible branch graph** (§4.3): :func:`branch_graph.branch_skeleton`.
+6. **hidden branches** (§5): constrained growth — the project's space colonization from
+   the visible skeleton toward the leaf points (seed 002 grows its replication blocks
+   "constrained by the leaf points"); radii by the pipe model, the trunk at its measured width.
+7. **leaves** (§6): leaf clusters on the twigs, each coloured from the photos at the
+   nearest leaf point.
+8. mesh, previews from three input cameras, metrics, export (tree.glb ...,
+   cameras.json, points.ply).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import numpy as np
+
+from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.methods.multiview.config import MultiviewConfig
+
+__all__ = ["STAGES", "MultiviewResult", "reconstruct_multiview"]
+
+STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
+
+
+@dataclass
+class MultiviewResult:
+    skeleton: object
+    foliage: object
+    mesh: object
+    sfm: object
+    carved: object
+    branch: np.ndarray
+    preview: np.ndarray
+    metrics: dict
+    config: dict
+    timings: dict = field(default_factory=dict)
+    files: dict = field(default_factory=dict)
+
+
+def _scaled_K(sfm, scales) -> np.ndarray:
+    K = sfm.K.copy()
+    K[:, :2, :] *= np.asarray(scales, np.float64)[:, None, None]
+    return K
+
+
+def _segment_views(views, sfm, cfg, timer_cb=None):
+    """Labels (0/1/2) of every registered view at ``mask_size`` and the K scaled to them."""
+    from PIL import Image
+
+    from treeform.segment import segment
+
+    by_name = {v.name: v for v in views}
+    labels, images, scales = [], [], []
+    for k, name in enumerate(sfm.names):
+        img = by_name[name].image
+        s = min(1.0, cfg.mask_size / max(img.shape[:2]))
+        small = img if s == 1.0 else np.asarray(Image.fromarray(img).resize(
+            (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))), Image.LANCZOS))
+        seg = segment(small, method=cfg.segmenter, seed=cfg.seed)
+        labels.append(np.asarray(seg.labels, np.uint8))
+        images.append(small)
+        scales.append(small.shape[1] / sfm.sizes[k, 0])
+        if timer_cb is not None:
+            timer_cb(k + 1, len(sfm.names))
+    return labels, images, np.asarray(scales)
+
+
+def _hull_box(sfm) -> tuple[np.ndarray, np.ndarray]:
+    """The region the tree can occupy: inside the camera ring, from just under the ground up."""
+    c = sfm.centers
+    ring = float(np.median(np.hypot(c[:, 0], c[:, 2])))
+    if not ring > 0:
+        raise InputError("the cameras do not surround the tree (a camera stands on its axis)")
+    r = ring
+    # the ground plane of a sparse model may be off: carve from well under the cameras
+    low = float(c[:, 1].min()) - ring
+    top = float(c[:, 1].max()) + 3.0 * ring
+    return np.array([-r, low, -r]), np.array([r, top, r])
+
+
+def _crown_attractors(carved, branch: np.ndarray, n: int, rng) -> np.ndarray:
+    """``n`` points spread over the leaf cells in proportion to their volume."""
+    leaf = ~branch
+    if not leaf.any() or n <= 0:
+        return np.zeros((0, 3))
+    pts, size = carved.points[leaf], carved.size[leaf]
+    vol = size ** 3
+    pick = rng.choice(len(pts), size=n, p=vol / vol.sum())
+    return pts[pick] + (rng.random((n, 3)) - 0.5) * size[pick, None]
+
+
+def reconstruct_multiview(photos, *, out=None, config: MultiviewConfig | None = None,
+                          progress: ProgressCallback | None = None, **options) -> MultiviewResult:
+    """Reconstruct one tree from photos taken around it (seed 002).
+
+    Parameters
+    ----------
+    photos : str, Path or sequence of paths
+        A folder of photos (10–60 taken around the tree) or the files.
+    out : path, optional
+        Output folder: tree.glb, tree.obj, skeleton.json/.ply, preview.png, metrics.json,
+        config.json, cameras.json, points.ply (written all or nothing).
+    config : MultiviewConfig, optional
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` for :data:`STAGES`.
+    **options
+        Fields of :class:`MultiviewConfig` (override ``config``).
+
+    Returns
+    -------
+    MultiviewResult
+
+    Raises
+    ------
+    InputError
+        Too few or unreadable photos, bad options.
+    NoTreeFoundError
+        The photos show no tree the mattes agree on.
+    SfmError
+        The photos cannot be registered (see :mod:`treeform.sfm`).
+    """
+    import dataclasses
+
+    from treeform._shared.checks import check_known_options
+    from treeform._shared.rng import as_rng
+    from treeform.geometry import LOD_PRESETS, tree_mesh
+    from treeform.growth.leaves import twig_foliage
+    from treeform.growth.radii import branch_orders, pipe_model_radii
+    from treeform.growth.space_colonization import space_colonization
+    from treeform.io.outputs import check_out_dir
+    from treeform.methods.multiview.branch_graph import branch_skeleton
+    from treeform.methods.multiview.carve import carve_tree
+    from treeform.sfm import load_photos, run_sfm, to_tree_frame
+    from treeform.structures import TreeSkeleton
+
+    cfg = dataclasses.replace(config or MultiviewConfig(), **check_known_options(MultiviewConfig, options)).validate()
+    if out is not None:
+        out = check_out_dir(out)
+    timer = StageTimer(progress)
+    rng = as_rng(cfg.seed)
+
+    with timer.stage("photos"):
+        views = load_photos(photos, max_size=cfg.max_size)
+    with timer.stage("sfm"):
+        sfm = run_sfm(views, seed=cfg.seed)
+    with timer.stage("frame"):
+        sfm = to_tree_frame(sfm, eye_height=cfg.eye_height, seed=cfg.seed)
+    with timer.stage("matting"):
+        labels, images, scales = _segment_views(views, sfm, cfg)
+        K = _scaled_K(sfm, scales)
+        seen_tree = np.array([(lab > 0).mean() for lab in labels])
+        if np.count_nonzero(seen_tree > 0.002) < max(3, len(labels) // 2):
+            raise NoTreeFoundError("no tree found in the photos (the segmentation finds none in most views)")
+    with timer.stage("carve"):
+        lo, hi = _hull_box(sfm)
+        coarse = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
+                            tolerance=cfg.tolerance)
+        if len(coarse) == 0:
+            raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
+        foot, height = _tree_extent(coarse)
+        # the trunk's foot stands on the ground: metres from the given height, else from the cameras'
+        # eye height above the foot (the SfM ground plane of a sparse model is a weaker cue)
+        above = float(np.median(sfm.centers[:, 1])) - foot[1]
+        if cfg.height is not None:
+            s = cfg.height / height
+        elif above > 0:
+            s = cfg.eye_height / above
+        else:
+            raise NoTreeFoundError("no tree found: the carved volume lies above the cameras")
+        # origin at the trunk's foot
+        sfm = sfm.transformed(s, np.eye(3), -s * foot)
+        height *= s
+        lo = np.array([-0.75 * height, -0.02 * height, -0.75 * height])
+        hi = np.array([0.75 * height, 1.1 * height, 0.75 * height])
+        ring = float(np.min(np.hypot(sfm.centers[:, 0], sfm.centers[:, 2])))
+        lo[[0, 2]] = np.maximum(lo[[0, 2]], -0.95 * ring)
+        hi[[0, 2]] = np.minimum(hi[[0, 2]], 0.95 * ring)
+        voxel = height / cfg.cells
+        carved = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=voxel, tolerance=cfg.tolerance,
+                            images=images)
+        if len(carved) == 0:
+            raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
+    with timer.stage("branches"):
+        # thin = at most twice as wide as the trunk at its foot (the mattes' blur widens every branch alike)
+        foot_cells = carved.points[:, 1] < np.percentile(carved.points[:, 1], 1) + 0.03 * height
+        trunk_th = float(np.median(carved.thickness[foot_cells])) if foot_cells.any() else 0.0
+        thin = float(np.clip(2.0 * trunk_th, max(4.0 * voxel, 0.012 * height), 0.025 * height))
+        branch = (carved.thickness < thin) | ((carved.wood > 0.5) & (carved.thickness < 2.5 * thin))
+        visible = branch_skeleton(carved.points[branch], carved.thickness[branch], link=2.5 * voxel,
+                                  gap=0.06 * height, bin_width=max(3.0 * voxel, 0.008 * height),
+                                  root=np.zeros(3)) if branch.sum() >= 2 else None
+        if visible is None or visible.n_nodes < 2:
+            # nothing thin seen: a trunk from the foot to the crown's bottom
+            bottom = float(np.percentile(carved.points[:, 1], 2))
+            ys = np.linspace(0.0, max(bottom, 0.1 * height), 6)
+            visible = TreeSkeleton(np.column_stack([np.zeros(6), ys, np.zeros(6)]), np.arange(-1, 5),
+                                   np.full(6, 0.02 * height))
+        trunk_r = float(np.median(visible.radius[: max(3, visible.n_nodes // 20)]))
+    with timer.stage("growth"):
+        att = _crown_attractors(carved, branch, 4000, rng)
+        start_pos, start_par = visible.positions, visible.parent
+        if len(att):
+            res = space_colonization(att, start_pos, start_par, influence_radius=0.2 * height,
+                                     kill_distance=0.035 * height, segment_length=0.015 * height,
+                                     max_iterations=400)
+            pos, par = res.positions, res.parent
+        else:
+            pos, par = start_pos, start_par
+        radius = pipe_model_radii(par, tip_radius=1.0)
+        radius *= trunk_r / radius[0]
+        radius = np.maximum(radius, 0.002)
+        skeleton = TreeSkeleton(pos, par, radius, branch_orders(par, radius))
+        skeleton.meta.update({"method": "multiview", "visible_nodes": int(visible.n_nodes)})
+    with timer.stage("leaves"):
+        leaf = ~branch
+        crown_rgb = carved.colors[leaf] if leaf.any() else carved.colors
+        base = np.median(crown_rgb, axis=0) / 255.0 if len(crown_rgb) else np.array([0.3, 0.45, 0.2])
+        size = float(np.clip(0.03 * height, 0.15, 0.8))
+        foliage = twig_foliage(skeleton, leaf_color=base, size=size, leaves=cfg.leaves, seed=rng)
+        if len(foliage) and leaf.any():
+            from scipy.spatial import cKDTree
+
+            k = cKDTree(carved.points[leaf]).query(foliage.positions)[1]
+            col = crown_rgb[k] / 255.0 * rng.normal(1.0, 0.06, (len(foliage), 1))
+            foliage = foliage.with_colors(np.column_stack([np.clip(col, 0, 1), np.ones(len(foliage))])
+                                          if foliage.color.shape[1] == 4 else np.clip(col, 0, 1))
+    with timer.stage("mesh"):
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], seed=cfg.seed)
+    with timer.stage("render"):
+        preview, iou = _preview(mesh, sfm, images, labels)
+    metrics = {
+        "photos": len(views), "registered": sfm.n_cameras, "unregistered": list(sfm.unregistered),
+        "sfm_points": int(len(sfm.points)), "carved_cells": int(len(carved)),
+        "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
+        "leaves": len(foliage), "triangles": mesh.n_triangles, "tree_height_m": round(float(height), 4),
+        "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
+        "silhouette_iou_median": round(float(np.median(iou)), 4) if len(iou) else None,
+        "silhouette_iou_min": round(float(np.min(iou)), 4) if len(iou) else None,
+        "sfm": sfm.meta,
+    }
+    metrics["seconds"] = {k: round(v, 3) for k, v in timer.timings.items()}
+    result = MultiviewResult(skeleton, foliage, mesh, sfm, carved, branch, preview, metrics, cfg.to_dict(),
+                             timer.timings)
+    if out is not None:
+        with timer.stage("export"):
+            result.files = _export(out, result)
+    metrics["seconds"] = {k: round(v, 3) for k, v in timer.timings.items()}
+    metrics["total_seconds"] = round(sum(timer.timings.values()), 3)
+    return result
+
+
+def _tree_extent(carved) -> tuple[np.ndarray, float]:
+    """The trunk's foot (lowest cells' centre, on the ground) and the tree's height above it."""
+    y = carved.points[:, 1]
+    low = y <= np.percentile(y, 1) + 1e-9
+    foot = carved.points[low].mean(0)
+    foot[1] = float(y.min() - 0.5 * carved.size[np.argmin(y)])
+    height = float(y.max() + 0.5 * carved.size[np.argmax(y)]) - foot[1]
+    if not height > 0:
+        raise NoTreeFoundError("no tree found: the carved volume lies under the ground")
+    return foot, height
+
+
+def _preview(mesh, sfm, images, labels):
+    """Three input photos beside the model rendered from their cameras, and every view's silhouette IoU."""
+    from treeform.render import Renderer
+    from treeform.report.preview import compose_strip
+
+    n = sfm.n_cameras
+    iou = []
+    tiles, names = [], []
+    show = sorted({0, n // 3, (2 * n) // 3})
+    renderer = None
+    try:
+        for k in range(n):
+            h, w = labels[k].shape
+            cam = sfm.render_camera(k, near=0.1, far=1000.0, scale=w / sfm.sizes[k, 0])
+            if renderer is None:
+                renderer = Renderer(cam, samples=1 if k not in show else 4)
+            renderer.camera = cam
+            res = renderer.render(mesh)
+            m = res.mask[:h, :w] > 0
+            t = labels[k] > 0
+            iou.append(float((m & t).sum() / max((m | t).sum(), 1)))
+            if k in show:
+                tiles += [images[k], res.rgb((255, 255, 255))]
+                names += [f"photo {sfm.names[k]}", "model, same camera"]
+    finally:
+        if renderer is not None:
+            renderer.release()
+    rows = [compose_strip(tiles[i:i + 2], labels=names[i:i + 2], height=300) for i in range(0, len(tiles), 2)]
+    width = max(r.shape[1] for r in rows)
+    rows = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
+    return np.concatenate(rows, axis=0), np.array(iou)
+
+
+def _export(out, result) -> dict:
+    from treeform.io.outputs import write_json, write_tree_outputs
+    from treeform.io.ply import write_points_ply
+
+    sfm, carved = result.sfm, result.carved
+    lab = np.where(result.branch, 1, 2).astype(np.uint8)  # 1 branch, 2 leaf, 0 background (SfM points)
+    pts = np.concatenate([carved.points, sfm.points])
+    cols = np.concatenate([carved.colors, sfm.colors])
+    labels = np.concatenate([lab, np.zeros(len(sfm.points), np.uint8)])
+    return write_tree_outputs(
+        out, mesh=result.mesh, skeleton=result.skeleton, preview=result.preview, config=result.config,
+        metrics=result.metrics,
+        extra=[lambda d: write_json(d / "cameras.json", sfm.cameras_json()),
+               lambda d: write_points_ply(d / "points.ply", pts, cols, labels)])

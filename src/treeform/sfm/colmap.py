@@ -1,0 +1,529 @@
+"""Structure from motion with COLMAP (pycolmap): photos -> :class:`SfmResult` (seed 002 §3).
+
+The stages, each timed in ``meta["seconds"]`` and reported through ``progress(stage, event,
+seconds)``:
+
+``sfm.write``
+    The upright, resized photos are written as PNG into a work folder, one sub-folder per
+    camera group (same size and same focal prior: one COLMAP camera, ``SIMPLE_RADIAL``).
+``sfm.extract``
+    SIFT on the CPU; the focal priors from EXIF are set on the cameras
+    (``has_prior_focal_length``).
+``sfm.match``
+    Exhaustive matching up to :data:`EXHAUSTIVE_MAX` photos; above, the pairs are chosen
+    offline and without a vocabulary tree: neighbours in name order (with the loop around the
+    tree closed) and the nearest photos by a bag of visual words built from the photos' own
+    SIFT descriptors (:func:`retrieval_pairs`).
+``sfm.map``
+    Incremental mapping; the largest model is kept.
+``sfm.convert``
+    COLMAP's model -> :class:`SfmResult`, and the checks for a degenerate model.
+
+Determinism: RANSAC of the two-view verification and the mapper are seeded with ``seed``, the
+pairs and the vocabulary are deterministic, so the same photos give the same model on the same
+machine (tested). SIFT, matching and bundle adjustment use ``num_threads`` threads; each pair
+and each image is computed alone, so the thread count changes only the timing.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import shutil
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from treeform._shared.errors import InputError, SfmError
+from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.sfm.photos import MIN_PHOTOS, PhotoView
+from treeform.sfm.result import SfmResult
+
+__all__ = ["run_sfm", "retrieval_pairs", "sequential_pairs", "check_geometry", "convergence_point",
+           "MATCHERS", "EXHAUSTIVE_MAX", "STAGES"]
+
+log = logging.getLogger(__name__)
+
+MATCHERS = ("auto", "exhaustive", "sequential", "retrieval")
+"""Values of ``run_sfm(matcher=...)``."""
+
+EXHAUSTIVE_MAX = 40
+"""``matcher="auto"`` matches every pair up to this many photos, above it uses ``"retrieval"``."""
+
+STAGES = ("sfm.write", "sfm.extract", "sfm.match", "sfm.map", "sfm.convert")
+"""Stage names reported through ``progress(stage, event, seconds)``, in order."""
+
+SEQUENTIAL_OVERLAP = 10
+"""``matcher="sequential"``: each photo is matched with this many next ones (plus 2^k steps)."""
+
+RETRIEVAL_K = 8
+"""``matcher="retrieval"``: each photo is matched with its this many most similar photos ..."""
+
+RETRIEVAL_OVERLAP = 2
+"""... and with this many next ones in name order (the loop closed)."""
+
+MIN_BASELINE = 0.02
+"""A model whose camera centres spread less than this fraction of the scene depth is rotation-only."""
+
+
+@contextmanager
+def _quiet_colmap():
+    """Silence COLMAP's glog lines on stderr (unless this module's logger shows DEBUG)."""
+    import pycolmap
+
+    lg = pycolmap.logging
+    if log.isEnabledFor(logging.DEBUG):
+        yield
+        return
+    old = lg.minloglevel
+    lg.minloglevel = 3  # FATAL only: every failure becomes one SfmError line
+    try:
+        yield
+    finally:
+        lg.minloglevel = old
+
+
+def _camera_groups(views: list[PhotoView], per_photo: bool) -> list[int]:
+    """Group index per view: same size and same focal prior share a COLMAP camera."""
+    keys, groups = {}, []
+    for i, v in enumerate(views):
+        key = i if per_photo else (v.size, None if v.focal_px is None else round(v.focal_px, 1))
+        groups.append(keys.setdefault(key, len(keys)))
+    return groups
+
+
+def _write_images(views, groups, image_dir: Path) -> list[str]:
+    import cv2
+
+    names = []
+    for i, (v, g) in enumerate(zip(views, groups)):
+        rel = f"cam{g:03d}/{i:05d}.png"
+        (image_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+        if not cv2.imwrite(str(image_dir / rel), np.ascontiguousarray(v.image[..., ::-1]),
+                           [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+            raise SfmError(f"could not write the SfM work image {image_dir / rel}")
+        names.append(rel)
+    return names
+
+
+def sequential_pairs(n: int, *, overlap: int = 3, quadratic: bool = True, loop: bool = True) -> list[tuple[int, int]]:
+    """Pairs of photos close in name order (photos taken walking around the tree).
+
+    Each photo is paired with the next ``overlap`` ones and, with ``quadratic``, with the
+    ones 2^k further (k < 6); with ``loop`` the order wraps around (the walk ends where it
+    began).
+
+    Returns
+    -------
+    list of (i, j) with i < j, sorted
+
+    Examples
+    --------
+    >>> sequential_pairs(5, overlap=1)
+    [(0, 1), (0, 2), (0, 3), (0, 4), (1, 2), (1, 3), (1, 4), (2, 3), (2, 4), (3, 4)]
+    """
+    steps = set(range(1, overlap + 1)) | ({2 ** k for k in range(6)} if quadratic else set())
+    pairs = set()
+    for i in range(n):
+        for s in steps:
+            j = i + s
+            if j >= n:
+                if not loop:
+                    continue
+                j %= n
+            if j != i:
+                pairs.add((min(i, j), max(i, j)))
+    return sorted(pairs)
+
+
+def retrieval_pairs(descriptors: list[np.ndarray], *, k: int = 10, words: int = 256, seed: int = 0,
+                    per_image: int = 1500) -> list[tuple[int, int]]:
+    """The ``k`` most similar photos of each photo by a bag of visual words (no vocabulary file).
+
+    A vocabulary of ``words`` SIFT words is clustered (k-means, seeded) from the photos' own
+    descriptors; each photo becomes a tf-idf histogram and photos are paired with their ``k``
+    nearest by cosine similarity.
+
+    Parameters
+    ----------
+    descriptors : list of ndarray, each (N_i, 128)
+        SIFT descriptors per photo (uint8 or float).
+    k : int
+    words : int
+    seed : int
+    per_image : int
+        Descriptors per photo used (evenly spaced), bounding the cost.
+
+    Returns
+    -------
+    list of (i, j) with i < j, sorted
+    """
+    n = len(descriptors)
+    rng = np.random.default_rng(seed)
+    sub = []
+    for d in descriptors:
+        d = np.asarray(d, np.float32).reshape(-1, 128)
+        if len(d) > per_image:
+            d = d[np.linspace(0, len(d) - 1, per_image).astype(int)]
+        sub.append(d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9))
+    allv = np.concatenate(sub) if sub else np.zeros((0, 128), np.float32)
+    if n < 2 or len(allv) == 0:
+        return []
+    train = allv[rng.choice(len(allv), min(len(allv), 200 * words), replace=False)] \
+        if len(allv) > 200 * words else allv
+    words = max(1, min(words, len(train)))
+    cent = train[rng.choice(len(train), words, replace=False)].copy()
+    for _ in range(8):  # Lloyd iterations (cosine on unit vectors)
+        lab = np.argmax(train @ cent.T, axis=1)
+        for w in range(words):
+            m = lab == w
+            if m.any():
+                c = train[m].sum(0)
+                cent[w] = c / max(np.linalg.norm(c), 1e-9)
+    hist = np.zeros((n, words))
+    for i, d in enumerate(sub):
+        if len(d):
+            hist[i] = np.bincount(np.argmax(d @ cent.T, axis=1), minlength=words)
+    idf = np.log(n / np.maximum((hist > 0).sum(0), 1))
+    h = hist * idf
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    sim = h @ h.T
+    np.fill_diagonal(sim, -np.inf)
+    pairs = set()
+    for i in range(n):
+        order = np.lexsort((np.arange(n), -sim[i]))  # most similar first, ties by index
+        for j in order[:min(k, n - 1)]:
+            pairs.add((min(i, int(j)), max(i, int(j))))
+    return sorted(pairs)
+
+
+def _extract(db_path, image_dir, names, max_features, first_octave, num_threads):
+    import pycolmap
+
+    ro = pycolmap.ImageReaderOptions()
+    ro.camera_model = "SIMPLE_RADIAL"
+    eo = pycolmap.FeatureExtractionOptions()
+    eo.num_threads = num_threads
+    eo.use_gpu = False
+    eo.sift.max_num_features = int(max_features)
+    eo.sift.first_octave = int(first_octave)
+    pycolmap.extract_features(db_path, image_dir, image_names=names, camera_mode=pycolmap.CameraMode.PER_FOLDER,
+                              reader_options=ro, extraction_options=eo, device=pycolmap.Device.cpu)
+
+
+def _set_focal_priors(db_path, views, groups, names) -> dict:
+    """Put each group's EXIF focal prior on its COLMAP camera; returns {image_name: image_id}."""
+    import pycolmap
+
+    db = pycolmap.Database.open(db_path)
+    try:
+        images = {im.name: im for im in db.read_all_images()}
+        cams = {c.camera_id: c for c in db.read_all_cameras()}
+        ids = {}
+        for i, name in enumerate(names):
+            if name not in images:
+                raise SfmError(f"COLMAP could not read {views[i].name}")
+            im = images[name]
+            ids[name] = im.image_id
+            cam, f = cams[im.camera_id], views[i].focal_px
+            if f is not None and not cam.has_prior_focal_length:
+                w, h = views[i].size
+                cam.params = [f, w / 2.0, h / 2.0, 0.0]
+                cam.has_prior_focal_length = True
+                db.update_camera(cam)
+        return ids
+    finally:
+        db.close()
+
+
+def _read_descriptors(db_path, image_ids) -> list[np.ndarray]:
+    import pycolmap
+
+    db = pycolmap.Database.open(db_path)
+    try:
+        return [np.asarray(db.read_descriptors(i).data) for i in image_ids]
+    finally:
+        db.close()
+
+
+def _match(db_path, workdir: Path, matcher, names, image_ids, num_threads, seed, max_matches) -> dict:
+    import pycolmap
+
+    mo = pycolmap.FeatureMatchingOptions()
+    mo.num_threads = num_threads
+    mo.use_gpu = False
+    mo.guided_matching = False
+    mo.max_num_matches = int(max_matches)
+    vo = pycolmap.TwoViewGeometryOptions()
+    vo.ransac.random_seed = int(seed)
+    n = len(names)
+    if matcher == "exhaustive":
+        pycolmap.match_exhaustive(db_path, matching_options=mo, verification_options=vo, device=pycolmap.Device.cpu)
+        return {"pairs": n * (n - 1) // 2}
+    if matcher == "sequential":
+        pairs = set(sequential_pairs(n, overlap=SEQUENTIAL_OVERLAP))
+    else:
+        pairs = set(sequential_pairs(n, overlap=RETRIEVAL_OVERLAP, quadratic=False))
+        pairs |= set(retrieval_pairs(_read_descriptors(db_path, [image_ids[m] for m in names]), k=RETRIEVAL_K,
+                                     seed=seed))
+    pairs = sorted(pairs)
+    lst = workdir / "pairs.txt"
+    lst.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
+    po = pycolmap.ImportedPairingOptions()
+    po.match_list_path = str(lst)
+    pycolmap.match_image_pairs(db_path, matching_options=mo, pairing_options=po, verification_options=vo,
+                               device=pycolmap.Device.cpu)
+    return {"pairs": len(pairs)}
+
+
+def _verified_pairs(db_path, min_inliers: int = 15) -> int:
+    import pycolmap
+
+    db = pycolmap.Database.open(db_path)
+    try:
+        _, inliers = db.read_two_view_geometry_num_inliers()
+        return int(sum(1 for v in inliers if v >= min_inliers))
+    finally:
+        db.close()
+
+
+def _map(db_path, image_dir, out_dir, n, num_threads, seed):
+    import pycolmap
+
+    opts = pycolmap.IncrementalPipelineOptions()
+    opts.num_threads = num_threads
+    opts.random_seed = int(seed)
+    opts.mapper.random_seed = int(seed)
+    opts.triangulation.random_seed = int(seed)
+    opts.min_model_size = MIN_PHOTOS
+    opts.multiple_models = True
+    opts.max_num_models = 10
+    opts.extract_colors = True
+    opts.ba_refine_principal_point = False
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return pycolmap.incremental_mapping(db_path, image_dir, out_dir, options=opts)
+
+
+def _convert(rec, views, names_by_colmap: dict) -> SfmResult:
+    """COLMAP reconstruction -> SfmResult (names sorted; K with the principal point folded in)."""
+    reg = []
+    for image_id in rec.reg_image_ids():
+        im = rec.images[image_id]
+        reg.append((views[names_by_colmap[im.name]].name, image_id))
+    reg.sort()
+    index = {image_id: c for c, (_, image_id) in enumerate(reg)}
+    C = len(reg)
+    K, c2w, sizes, radial = np.zeros((C, 3, 3)), np.zeros((C, 4, 4)), np.zeros((C, 2), np.int64), {}
+    xy = {}
+    for c, (name, image_id) in enumerate(reg):
+        im = rec.images[image_id]
+        cam = rec.cameras[im.camera_id]
+        f, cx, cy, k1 = (float(v) for v in cam.params)
+        K[c] = [[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]]
+        w2c = np.eye(4)
+        w2c[:3, :4] = im.cam_from_world().matrix()
+        c2w[c] = np.linalg.inv(w2c)
+        c2w[c, 3] = [0.0, 0.0, 0.0, 1.0]
+        sizes[c] = (cam.width, cam.height)
+        radial[name] = k1
+        xy[image_id] = np.array([p.xy for p in im.points2D], np.float64).reshape(-1, 2)
+    pids = sorted(rec.points3D.keys())
+    pts = np.zeros((len(pids), 3))
+    cols = np.zeros((len(pids), 3), np.uint8)
+    errs = np.zeros(len(pids))
+    tracks = []
+    for n, pid in enumerate(pids):
+        p = rec.points3D[pid]
+        pts[n], cols[n], errs[n] = p.xyz, p.color, p.error
+        els = sorted((index[e.image_id], e.point2D_idx, e.image_id) for e in p.track.elements)
+        tr = np.array([(c, *xy[iid][idx]) for c, idx, iid in els], np.float64).reshape(-1, 3)
+        tracks.append(tr)
+    unregistered = sorted(set(v.name for v in views) - set(n for n, _ in reg))
+    return SfmResult([n for n, _ in reg], K, c2w, sizes, pts, cols, errs, tracks, unregistered,
+                     {"radial_k1": radial})
+
+
+def convergence_point(result: SfmResult) -> tuple[np.ndarray, float]:
+    """The point closest (least squares) to all optical axes, and the conditioning of that fit.
+
+    Returns
+    -------
+    point : ndarray, shape (3,)
+    conditioning : float
+        Smallest / largest eigenvalue of the normal matrix, in [0, 1]; near 0 when the axes
+        are (nearly) parallel and the point is undetermined.
+    """
+    A, b = np.zeros((3, 3)), np.zeros(3)
+    for T in result.cam_to_world:
+        d = T[:3, 2] / np.linalg.norm(T[:3, 2])
+        M = np.eye(3) - np.outer(d, d)
+        A += M
+        b += M @ T[:3, 3]
+    ev = np.linalg.eigvalsh(A)
+    cond = float(ev[0] / ev[-1]) if ev[-1] > 0 else 0.0
+    return np.linalg.lstsq(A, b, rcond=None)[0], cond
+
+
+def check_geometry(result: SfmResult) -> dict:
+    """Checks that a model is a usable capture around an object; returns notes for ``meta``.
+
+    Raises
+    ------
+    SfmError
+        Fewer than 3 registered photos; a rotation-only model (camera centres within
+        :data:`MIN_BASELINE` of the scene depth: the photos were taken from one spot); or
+        cameras that do not face a common object (optical axes parallel, or their meeting
+        point behind or outside the view of most cameras).
+    """
+    C = result.n_cameras
+    if C < MIN_PHOTOS:
+        raise SfmError(f"only {C} of {C + len(result.unregistered)} photos could be registered; need at least "
+                       f"{MIN_PHOTOS} (take more overlapping photos while walking around the tree)")
+    centres = result.centers
+    if len(result.points):
+        ref = np.median(result.points, axis=0)
+        depth = float(np.median(np.linalg.norm(result.points[None] - centres[:, None], axis=2)
+                                if len(result.points) * C < 2_000_000 else np.linalg.norm(centres - ref, axis=1)))
+    else:
+        depth = float(np.median(np.linalg.norm(centres - centres.mean(0), axis=1))) or 1.0
+    spread = float(np.sqrt(np.linalg.eigvalsh(np.cov(centres.T))[-1])) if C > 1 else 0.0
+    baseline = spread / max(depth, 1e-12)
+    if baseline < MIN_BASELINE:
+        raise SfmError(f"degenerate model: the camera barely moved (spread {baseline:.1%} of the scene depth): "
+                       "the photos were taken from one spot; walk around the tree between photos")
+    X, cond = convergence_point(result)
+    uvz = np.stack([result.project(X[None], i)[0] for i in range(C)])
+    in_front = uvz[:, 2] > 0
+    inside = in_front & (uvz[:, 0] >= 0) & (uvz[:, 0] <= result.sizes[:, 0]) & (uvz[:, 1] >= 0) \
+        & (uvz[:, 1] <= result.sizes[:, 1])
+    if cond < 1e-4 or in_front.mean() < 2 / 3 or inside.mean() < 0.5:
+        raise SfmError("degenerate model: the cameras do not face a common object (their view axes do not meet "
+                       f"in front of them: {int(inside.sum())} of {C} photos see the meeting point); "
+                       "take the photos around the tree, facing it")
+    return {"baseline_ratio": round(baseline, 4), "convergence_point": [round(float(v), 6) for v in X],
+            "convergence_seen": round(float(inside.mean()), 3), "scene_depth": round(depth, 6)}
+
+
+def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int = -1, matcher: str = "auto",
+            per_photo_camera: bool = False, num_threads: int = 2, seed: int = 0, check: bool = True,
+            progress: ProgressCallback | None = None) -> SfmResult:
+    """Register a photo collection with COLMAP: cameras and sparse 3D points (seed 002 §3).
+
+    Parameters
+    ----------
+    views : list of PhotoView
+        From :func:`treeform.sfm.photos.load_photos` (at least 3, unique names).
+    workdir : path-like, optional
+        Folder for COLMAP's images, database and models (kept); a temporary folder, removed
+        afterwards, by default.
+    max_features : int
+        Most SIFT features per photo (before orientation duplicates).
+    first_octave : int
+        SIFT's first octave: -1 doubles the image first (more, smaller features: 2-3 x the
+        points on 1024 px photos, at 3-4 x the time), 0 does not.
+    matcher : {"auto", "exhaustive", "sequential", "retrieval"}
+        Which pairs are matched: every pair; neighbours in name order (10 each side, plus
+        2^k steps, the loop closed); or name neighbours (3) plus the 10 most similar photos by
+        a bag of words (:func:`retrieval_pairs`). ``"auto"``: exhaustive up to
+        :data:`EXHAUSTIVE_MAX` photos, retrieval above.
+    per_photo_camera : bool
+        One COLMAP camera per photo (zoom changes between photos) instead of one per group
+        of equal size and focal prior.
+    num_threads : int
+        CPU threads of SIFT, matching and bundle adjustment.
+    seed : int
+        Seeds RANSAC, the mapper and the retrieval vocabulary.
+    check : bool
+        Raise :class:`SfmError` on a degenerate model (see :func:`check_geometry`).
+    progress : callable, optional
+        ``progress(stage, event, seconds)`` over :data:`STAGES`.
+
+    Returns
+    -------
+    SfmResult
+        The largest model, in COLMAP's world (an arbitrary similarity; see
+        :mod:`treeform.sfm.align`). ``meta`` holds ``n_views``, ``n_registered``,
+        ``n_models``, ``model_sizes``, ``n_points``, ``mean_reprojection_error``, ``seconds``
+        per stage, ``focal_source`` per photo, ``matcher``, ``pairs``, ``verified_pairs``,
+        ``radial_k1`` per photo (SIMPLE_RADIAL distortion, not in ``K``) and the geometry
+        checks.
+
+    Raises
+    ------
+    InputError
+        Bad arguments (fewer than 3 views, duplicate names, unknown matcher ...).
+    SfmError
+        No model ("could not register the photos: ..."), fewer than 3 registered photos, or
+        a degenerate model.
+    """
+    import pycolmap
+
+    views = list(views)
+    if not all(isinstance(v, PhotoView) for v in views):
+        raise InputError("views: expected a list of PhotoView (from treeform.sfm.load_photos)")
+    if len(views) < MIN_PHOTOS:
+        raise InputError(f"views: need at least {MIN_PHOTOS} photos of the tree, found {len(views)}")
+    if len({v.name for v in views}) != len(views):
+        raise InputError("views: photo names must be unique")
+    if matcher not in MATCHERS:
+        raise InputError(f"matcher: expected one of {', '.join(MATCHERS)}, got {matcher!r}")
+    if isinstance(max_features, bool) or not isinstance(max_features, (int, np.integer)) or max_features < 64:
+        raise InputError(f"max_features: expected an integer >= 64, got {max_features!r}")
+    if first_octave not in (-1, 0):
+        raise InputError(f"first_octave: expected -1 or 0, got {first_octave!r}")
+    num_threads = max(1, int(num_threads))
+    n = len(views)
+    used = "exhaustive" if (matcher == "auto" and n <= EXHAUSTIVE_MAX) else ("retrieval" if matcher == "auto"
+                                                                             else matcher)
+    timer = StageTimer(progress)
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.mkdtemp(prefix="treeform-sfm-")
+        work = Path(tmp)
+    else:
+        work = Path(workdir)
+        if work.exists() and any(work.iterdir()):
+            raise InputError(f"workdir: {work} exists and is not empty")
+        work.mkdir(parents=True, exist_ok=True)
+    db_path, image_dir = str(work / "database.db"), work / "images"
+    try:
+        with _quiet_colmap():
+            pycolmap.set_random_seed(int(seed))
+            with timer.stage("sfm.write"):
+                groups = _camera_groups(views, per_photo_camera)
+                names = _write_images(views, groups, image_dir)
+            with timer.stage("sfm.extract"):
+                _extract(db_path, image_dir, names, max_features, first_octave, num_threads)
+                image_ids = _set_focal_priors(db_path, views, groups, names)
+            with timer.stage("sfm.match"):
+                match_info = _match(db_path, work, used, names, image_ids, num_threads, seed, 16384)
+                verified = _verified_pairs(db_path)
+            with timer.stage("sfm.map"):
+                recs = _map(db_path, image_dir, work / "sparse", n, num_threads, seed) if verified else {}
+            with timer.stage("sfm.convert"):
+                if not recs:
+                    raise SfmError(f"could not register the photos: no model could be built ({verified} of "
+                                   f"{match_info['pairs']} photo pairs share enough matching features; the photos "
+                                   "must overlap, show a textured scene and be taken from different spots)")
+                sizes = sorted(((r.num_reg_images(), r.num_points3D(), -k) for k, r in recs.items()), reverse=True)
+                best = recs[-sizes[0][2]]
+                result = _convert(best, views, {m: i for i, m in enumerate(names)})
+                notes = check_geometry(result) if check else {}
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    result.meta.update({
+        "n_views": n, "n_registered": result.n_cameras, "n_unregistered": len(result.unregistered),
+        "n_models": len(recs), "model_sizes": [s[0] for s in sizes], "n_points": int(len(result.points)),
+        "mean_reprojection_error": round(float(result.errors.mean()), 4) if len(result.errors) else None,
+        "mean_track_length": round(float(np.mean([len(t) for t in result.tracks])), 3) if result.tracks else 0.0,
+        "seconds": {k: round(v, 3) for k, v in timer.timings.items()},
+        "focal_source": {v.name: v.focal_source for v in views},
+        "n_cameras_colmap": int(max(groups) + 1), "matcher": used, "pairs": match_info["pairs"],
+        "verified_pairs": verified, "max_features": int(max_features), "first_octave": int(first_octave),
+        "seed": int(seed), "colmap": f"pycolmap {pycolmap.__version__}", **notes,
+    })
+    return result

@@ -1,0 +1,132 @@
+"""Visual hull carving and the visible branch graph of the multi-view route, on analytic scenes."""
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform.methods.multiview.branch_graph import branch_skeleton
+from treeform.methods.multiview.carve import carve_tree
+
+
+def _ring_cameras(n=12, radius=12.0, height=1.6, target=(0, 3, 0), size=(160, 120), f=140.0):
+    K, c2w = [], []
+    for k in range(n):
+        a = 2 * np.pi * k / n
+        c = np.array([radius * np.sin(a), height, radius * np.cos(a)])
+        fwd = np.asarray(target, float) - c
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, [0, 1, 0])
+        right /= np.linalg.norm(right)
+        down = np.cross(fwd, right)
+        T = np.eye(4)
+        T[:3, :3] = np.column_stack([right, down, fwd])
+        T[:3, 3] = c
+        K.append([[f, 0, size[0] / 2], [0, f, size[1] / 2], [0, 0, 1]])
+        c2w.append(T)
+    return np.array(K, float), np.array(c2w), size
+
+
+def _tree_points(rng):
+    """A trunk (radius 0.15 m, 0..3 m) under a crown (a ball of radius 2 m at 4.5 m)."""
+    t = rng.uniform(0, 3.0, 20000)
+    a = rng.uniform(0, 2 * np.pi, 20000)
+    trunk = np.column_stack([0.15 * np.cos(a), t, 0.15 * np.sin(a)])
+    d = rng.normal(size=(60000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    crown = d * 2.0 * rng.uniform(0, 1, (60000, 1)) ** (1 / 3) + [0, 4.5, 0]
+    return trunk, crown
+
+
+def _masks(K, c2w, size, trunk, crown):
+    labels = []
+    for k in range(len(K)):
+        lab = np.zeros((size[1], size[0]), np.uint8)
+        w2c = np.linalg.inv(c2w[k])
+        for pts, value in ((crown, 1), (trunk, 2)):
+            pc = pts @ w2c[:3, :3].T + w2c[:3, 3]
+            uv = (pc @ K[k].T)[:, :2] / pc[:, 2:3]
+            ok = (uv[:, 0] >= 0) & (uv[:, 0] < size[0]) & (uv[:, 1] >= 0) & (uv[:, 1] < size[1])
+            lab[uv[ok, 1].astype(int), uv[ok, 0].astype(int)] = value
+        labels.append(lab)
+    return labels
+
+
+@pytest.fixture(scope="module")
+def scene():
+    rng = np.random.default_rng(0)
+    K, c2w, size = _ring_cameras()
+    trunk, crown = _tree_points(rng)
+    return K, c2w, _masks(K, c2w, size, trunk, crown), trunk, crown
+
+
+def test_hull_holds_the_tree_and_nothing_far_from_it(scene):
+    K, c2w, labels, trunk, crown = scene
+    ct = carve_tree(K, c2w, labels, box=([-4, -0.2, -4], [4, 8, 4]), voxel=0.05, tolerance=0.1)
+    assert len(ct) > 100
+    from scipy.spatial import cKDTree
+
+    # every true point lies in (or next to) a kept cell
+    d_true = cKDTree(ct.points).query(np.concatenate([trunk[::20], crown[::60]]))[0]
+    assert np.percentile(d_true, 99) < 0.35
+    # the hull hugs the trunk: no cell between 1 and 3 m high farther than 0.5 m from its axis
+    low = (ct.points[:, 1] > 1.0) & (ct.points[:, 1] < 2.5)
+    assert low.any() and np.hypot(ct.points[low, 0], ct.points[low, 2]).max() < 0.5
+    # thickness: thin on the trunk, wide in the crown; wood votes on the trunk
+    assert np.median(ct.thickness[low]) < 0.4
+    top = np.linalg.norm(ct.points - [0, 4.5, 0], axis=1) < 1.0
+    assert np.median(ct.thickness[top]) > 0.8
+    assert np.median(ct.wood[low]) > 0.5 and np.median(ct.wood[top]) < 0.2
+    # coarse cells inside the crown, fine ones along the trunk
+    assert ct.size[top].max() > ct.size[low].min()
+
+
+def test_carve_is_deterministic_and_checks_its_input(scene):
+    K, c2w, labels, _, _ = scene
+    a = carve_tree(K, c2w, labels, box=([-4, -0.2, -4], [4, 8, 4]), voxel=0.1)
+    b = carve_tree(K, c2w, labels, box=([-4, -0.2, -4], [4, 8, 4]), voxel=0.1)
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.thickness, b.thickness)
+    with pytest.raises(InputError, match="voxel"):
+        carve_tree(K, c2w, labels, box=([-4, 0, -4], [4, 8, 4]), voxel=0)
+    with pytest.raises(InputError, match="label images"):
+        carve_tree(K, c2w, labels[:-1], box=([-4, 0, -4], [4, 8, 4]), voxel=0.1)
+    empty = carve_tree(K, c2w, [np.zeros_like(x) for x in labels], box=([-4, 0, -4], [4, 8, 4]), voxel=0.1)
+    assert len(empty) == 0
+
+
+def _y_points(rng, gap=False):
+    """A trunk 0..2 m forking into two limbs to (+-1, 3.5, 0); points on the axes with jitter."""
+    segs = [((0, 0, 0), (0, 2, 0)), ((0, 2, 0), (1, 3.5, 0)), ((0, 2, 0), (-1, 3.5, 0))]
+    pts, th = [], []
+    for (a, b), r in zip(segs, (0.12, 0.06, 0.06)):
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        t = rng.uniform(0, 1, 800)
+        if gap and r < 0.1:
+            t = t[(t < 0.4) | (t > 0.5)]  # a 15 cm hole in each limb (a leaf in front of it)
+        pts.append(a + np.outer(t, b - a) + rng.normal(0, 0.01, (len(t), 3)))
+        th.append(np.full(len(t), r))
+    return np.concatenate(pts), np.concatenate(th)
+
+
+@pytest.mark.parametrize("gap", [False, True])
+def test_branch_skeleton_of_a_fork(gap):
+    pts, th = _y_points(np.random.default_rng(1), gap=gap)
+    sk = branch_skeleton(pts, th, link=0.06, gap=0.3, bin_width=0.15, root=np.zeros(3))
+    assert np.allclose(sk.positions[0], pts[np.argmin(np.linalg.norm(pts, axis=1))])
+    children = np.bincount(sk.parent[1:], minlength=sk.n_nodes)
+    tips = np.flatnonzero(children == 0)
+    assert len(tips) == 2  # one fork, two limbs; binning noise pruned
+    assert sorted(np.sign(sk.positions[tips, 0]).tolist()) == [-1.0, 1.0]
+    assert np.all(sk.positions[tips, 1] > 3.2)
+    # radii from the thickness: the trunk's nodes thicker than the limbs'
+    trunk = sk.positions[:, 1] < 1.8
+    assert np.median(sk.radius[trunk]) == pytest.approx(0.12, abs=0.01)
+    assert np.median(sk.radius[sk.positions[:, 1] > 2.6]) == pytest.approx(0.06, abs=0.01)
+    # nodes lie on the true axes
+    on_axis = np.minimum.reduce([np.hypot(sk.positions[:, 0], 0) + 10 * (sk.positions[:, 1] > 2.05),
+                                 np.abs(sk.positions[:, 1] - 2 - 1.5 * np.abs(sk.positions[:, 0])) / 1.8])
+    assert np.median(on_axis) < 0.05
+
+
+def test_branch_skeleton_needs_points():
+    with pytest.raises(NoTreeFoundError):
+        branch_skeleton(np.zeros((1, 3)), np.ones(1), link=0.1, gap=0.2, bin_width=0.1)
