@@ -255,29 +255,40 @@ def to_tree_frame(result: SfmResult, *, origin=None, scale: float | None = None,
     camera up (a level ground is the better vertical), else the camera up. The origin is the
     point the cameras look at (:func:`treeform.sfm.colmap.convergence_point`) dropped onto the
     ground, unless given. The scale puts the median camera at ``eye_height`` metres above the
-    ground, unless given.
+    ground, unless given. Where RANSAC finds no level plane, the ground is taken through the
+    5th percentile of the points below the cameras along the camera up.
 
     Returns
     -------
     SfmResult
-        With ``meta["frame"]``: ``up_source``, ``ground_inliers``, ``scale_source``,
+        With ``meta["frame"]``: ``up_source`` ("ground" or "cameras"), ``ground_source``
+        ("ransac" or "lowest_points"), ``ground_inliers``, ``scale_source``,
         ``camera_height_median`` (metres).
     """
     from treeform.sfm.colmap import convergence_point
 
     cam_up = up_vector(result)
-    plane = ground_plane(result, cam_up, seed=seed)
+    ground_source = "ransac"
+    try:
+        plane = ground_plane(result, cam_up, seed=seed)
+    except SfmError:  # no level plane among the lowest points: their 5th percentile along the camera up
+        h = result.points @ cam_up
+        below = h[h < np.median(result.centers @ cam_up)]
+        if len(below) < 3:
+            raise
+        plane, ground_source = Plane(cam_up, float(np.quantile(below, 0.05))), "lowest_points"
     angle = float(np.degrees(np.arccos(np.clip(plane.normal @ cam_up, -1, 1))))
     # a plane through a handful of points (a sparse model) is no evidence of the ground
     enough = plane.inliers >= max(MIN_GROUND_INLIERS, 0.05 * len(result.points))
     up, up_source = (plane.normal, "ground") if angle <= max_up_angle_deg and enough else (cam_up, "cameras")
-    if up_source == "cameras":
+    if up_source == "cameras" and ground_source == "ransac":
         plane = ground_plane(result, up, seed=seed)
     if origin is None:
         origin = plane.project(convergence_point(result)[0])[0]
     s = camera_height_scale(result, plane, eye_height=eye_height) if scale is None else float(scale)
     out = similarity_to_frame(result, origin=origin, up=up, scale=s)
     out.meta["frame"] = {"up_source": up_source, "ground_camera_up_angle_deg": round(angle, 3),
-                         "ground_inliers": plane.inliers, "scale_source": "eye_height" if scale is None else "given",
+                         "ground_source": ground_source, "ground_inliers": plane.inliers,
+                         "scale_source": "eye_height" if scale is None else "given",
                          "camera_height_median": round(float(np.median(out.centers[:, 1])), 4)}
     return out

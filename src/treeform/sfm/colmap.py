@@ -19,30 +19,37 @@ seconds)``:
 ``sfm.convert``
     COLMAP's model -> :class:`SfmResult`, and the checks for a degenerate model.
 
-Determinism: RANSAC of the two-view verification and the mapper are seeded with ``seed``, the
-pairs and the vocabulary are deterministic, so the same photos give the same model on the same
-machine (tested). SIFT, matching and bundle adjustment use ``num_threads`` threads; each pair
-and each image is computed alone, so the thread count changes only the timing.
+Determinism: the photos are imported before the (threaded) SIFT extraction so their ids do not
+depend on which thread finishes first; RANSAC of the two-view verification and the mapper are
+seeded with ``seed``; the pairs and the retrieval vocabulary are deterministic; the mapper runs
+on one thread (with more, COLMAP's per-thread random generators change the model from run to
+run). So the same photos give the same model on the same machine: bitwise in every repeat we
+made (24 views at 1024 px in two processes; the test capture a hundred times) but one, where 5
+of 1682 points differed after a test run under load, cause unknown. SIFT and matching use
+``num_threads`` threads; each photo and each pair is computed alone, so there the thread count
+changes only the timing.
+
+Timing (24 rendered views at 1024 x 768, 4096 features, two cores): write 1 s, SIFT 11-12 s,
+exhaustive matching of 276 pairs 28-30 s, mapping 4.6 s: about 46 s; ``matcher="retrieval"``
+(141 pairs) 32 s with the same accuracy.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import shutil
 import tempfile
-import time
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-from treeform._shared.errors import InputError, SfmError
+from treeform._shared.errors import InputError, SfmError, TreeformError
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.sfm.photos import MIN_PHOTOS, PhotoView
 from treeform.sfm.result import SfmResult
 
-__all__ = ["run_sfm", "retrieval_pairs", "sequential_pairs", "check_geometry", "convergence_point",
+__all__ = ["run_sfm", "import_pycolmap", "retrieval_pairs", "sequential_pairs", "check_geometry", "convergence_point",
            "MATCHERS", "EXHAUSTIVE_MAX", "STAGES"]
 
 log = logging.getLogger(__name__)
@@ -50,8 +57,12 @@ log = logging.getLogger(__name__)
 MATCHERS = ("auto", "exhaustive", "sequential", "retrieval")
 """Values of ``run_sfm(matcher=...)``."""
 
-EXHAUSTIVE_MAX = 40
-"""``matcher="auto"`` matches every pair up to this many photos, above it uses ``"retrieval"``."""
+EXHAUSTIVE_MAX = 25
+"""``matcher="auto"`` matches every pair up to this many photos, above it uses ``"retrieval"``.
+
+Exhaustive matching costs n(n-1)/2 pairs (~0.2 CPU-seconds each with 4096 features at 1024 px):
+300 pairs at 25 photos keep SfM within about a minute on two cores; retrieval matches about 6n
+pairs."""
 
 STAGES = ("sfm.write", "sfm.extract", "sfm.match", "sfm.map", "sfm.convert")
 """Stage names reported through ``progress(stage, event, seconds)``, in order."""
@@ -69,11 +80,35 @@ MIN_BASELINE = 0.02
 """A model whose camera centres spread less than this fraction of the scene depth is rotation-only."""
 
 
+def import_pycolmap():
+    """Import pycolmap after the system zlib is loaded, and return the module.
+
+    pycolmap 4.2's ``_core`` carries its own zlib symbols; when it is the first library to
+    load ``libz.so.1``, later PNG writes of OpenCV and Pillow abort in ``deflateEnd`` (or
+    hang). Loading zlib, OpenCV and Pillow first avoids it: import pycolmap through this
+    function.
+
+    Raises
+    ------
+    SfmError
+        pycolmap is not installed.
+    """
+    import zlib  # noqa: F401  (loads libz.so.1 where zlib is a shared module)
+
+    import cv2  # noqa: F401
+    from PIL import Image  # noqa: F401
+
+    try:
+        import pycolmap
+    except ImportError as exc:  # pragma: no cover - a declared dependency
+        raise SfmError(f"structure from motion needs pycolmap ({exc}); install it: pip install pycolmap") from None
+    return pycolmap
+
+
 @contextmanager
 def _quiet_colmap():
     """Silence COLMAP's glog lines on stderr (unless this module's logger shows DEBUG)."""
-    import pycolmap
-
+    pycolmap = import_pycolmap()
     lg = pycolmap.logging
     if log.isEnabledFor(logging.DEBUG):
         yield
@@ -201,7 +236,7 @@ def retrieval_pairs(descriptors: list[np.ndarray], *, k: int = 10, words: int = 
 
 
 def _extract(db_path, image_dir, names, max_features, first_octave, num_threads):
-    import pycolmap
+    pycolmap = import_pycolmap()
 
     ro = pycolmap.ImageReaderOptions()
     ro.camera_model = "SIMPLE_RADIAL"
@@ -210,13 +245,18 @@ def _extract(db_path, image_dir, names, max_features, first_octave, num_threads)
     eo.use_gpu = False
     eo.sift.max_num_features = int(max_features)
     eo.sift.first_octave = int(first_octave)
+    # importing first fixes the image ids in the given order (the threaded extractor would
+    # number the photos in the order its threads finish, and the mapper depends on the ids)
+    pycolmap.Database.open(db_path).close()  # creates the database
+    pycolmap.import_images(db_path, image_dir, camera_mode=pycolmap.CameraMode.PER_FOLDER, image_names=names,
+                           options=ro)
     pycolmap.extract_features(db_path, image_dir, image_names=names, camera_mode=pycolmap.CameraMode.PER_FOLDER,
                               reader_options=ro, extraction_options=eo, device=pycolmap.Device.cpu)
 
 
 def _set_focal_priors(db_path, views, groups, names) -> dict:
     """Put each group's EXIF focal prior on its COLMAP camera; returns {image_name: image_id}."""
-    import pycolmap
+    pycolmap = import_pycolmap()
 
     db = pycolmap.Database.open(db_path)
     try:
@@ -240,7 +280,7 @@ def _set_focal_priors(db_path, views, groups, names) -> dict:
 
 
 def _read_descriptors(db_path, image_ids) -> list[np.ndarray]:
-    import pycolmap
+    pycolmap = import_pycolmap()
 
     db = pycolmap.Database.open(db_path)
     try:
@@ -250,7 +290,7 @@ def _read_descriptors(db_path, image_ids) -> list[np.ndarray]:
 
 
 def _match(db_path, workdir: Path, matcher, names, image_ids, num_threads, seed, max_matches) -> dict:
-    import pycolmap
+    pycolmap = import_pycolmap()
 
     mo = pycolmap.FeatureMatchingOptions()
     mo.num_threads = num_threads
@@ -280,7 +320,7 @@ def _match(db_path, workdir: Path, matcher, names, image_ids, num_threads, seed,
 
 
 def _verified_pairs(db_path, min_inliers: int = 15) -> int:
-    import pycolmap
+    pycolmap = import_pycolmap()
 
     db = pycolmap.Database.open(db_path)
     try:
@@ -290,11 +330,14 @@ def _verified_pairs(db_path, min_inliers: int = 15) -> int:
         db.close()
 
 
-def _map(db_path, image_dir, out_dir, n, num_threads, seed):
-    import pycolmap
+def _map(db_path, image_dir, out_dir, seed):
+    pycolmap = import_pycolmap()
 
     opts = pycolmap.IncrementalPipelineOptions()
-    opts.num_threads = num_threads
+    # one thread: with more, COLMAP's per-thread random generators make the model differ from
+    # run to run (seen with 2 threads: 8 or 10 photos registered from the same database)
+    opts.num_threads = 1
+    opts.mapper.num_threads = 1
     opts.random_seed = int(seed)
     opts.mapper.random_seed = int(seed)
     opts.triangulation.random_seed = int(seed)
@@ -425,15 +468,17 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         SIFT's first octave: -1 doubles the image first (more, smaller features: 2-3 x the
         points on 1024 px photos, at 3-4 x the time), 0 does not.
     matcher : {"auto", "exhaustive", "sequential", "retrieval"}
-        Which pairs are matched: every pair; neighbours in name order (10 each side, plus
-        2^k steps, the loop closed); or name neighbours (3) plus the 10 most similar photos by
-        a bag of words (:func:`retrieval_pairs`). ``"auto"``: exhaustive up to
+        Which pairs are matched: every pair; neighbours in name order
+        (:data:`SEQUENTIAL_OVERLAP` on each side plus 2^k steps, the loop closed); or
+        :data:`RETRIEVAL_OVERLAP` name neighbours plus the :data:`RETRIEVAL_K` most similar
+        photos by a bag of words (:func:`retrieval_pairs`). ``"auto"``: exhaustive up to
         :data:`EXHAUSTIVE_MAX` photos, retrieval above.
     per_photo_camera : bool
         One COLMAP camera per photo (zoom changes between photos) instead of one per group
         of equal size and focal prior.
     num_threads : int
-        CPU threads of SIFT, matching and bundle adjustment.
+        CPU threads of SIFT extraction and matching (the mapper runs on one, see the module
+        notes on determinism).
     seed : int
         Seeds RANSAC, the mapper and the retrieval vocabulary.
     check : bool
@@ -459,8 +504,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         No model ("could not register the photos: ..."), fewer than 3 registered photos, or
         a degenerate model.
     """
-    import pycolmap
-
+    pycolmap = import_pycolmap()
     views = list(views)
     if not all(isinstance(v, PhotoView) for v in views):
         raise InputError("views: expected a list of PhotoView (from treeform.sfm.load_photos)")
@@ -502,7 +546,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                 match_info = _match(db_path, work, used, names, image_ids, num_threads, seed, 16384)
                 verified = _verified_pairs(db_path)
             with timer.stage("sfm.map"):
-                recs = _map(db_path, image_dir, work / "sparse", n, num_threads, seed) if verified else {}
+                recs = _map(db_path, image_dir, work / "sparse", seed) if verified else {}
             with timer.stage("sfm.convert"):
                 if not recs:
                     raise SfmError(f"could not register the photos: no model could be built ({verified} of "
@@ -512,6 +556,11 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                 best = recs[-sizes[0][2]]
                 result = _convert(best, views, {m: i for i, m in enumerate(names)})
                 notes = check_geometry(result) if check else {}
+    except TreeformError:
+        raise
+    except (RuntimeError, ValueError, OSError) as exc:  # COLMAP's own failures: one line, no traceback
+        stage = list(timer.timings)[-1] if timer.timings else STAGES[0]  # the failing stage ends last
+        raise SfmError(f"COLMAP failed ({stage.split('.')[1]}): {' '.join(str(exc).split())[:200]}") from exc
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
@@ -520,7 +569,8 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         "n_models": len(recs), "model_sizes": [s[0] for s in sizes], "n_points": int(len(result.points)),
         "mean_reprojection_error": round(float(result.errors.mean()), 4) if len(result.errors) else None,
         "mean_track_length": round(float(np.mean([len(t) for t in result.tracks])), 3) if result.tracks else 0.0,
-        "seconds": {k: round(v, 3) for k, v in timer.timings.items()},
+        "seconds": {**{k: round(v, 3) for k, v in timer.timings.items()},
+                    "total": round(sum(timer.timings.values()), 3)},
         "focal_source": {v.name: v.focal_source for v in views},
         "n_cameras_colmap": int(max(groups) + 1), "matcher": used, "pairs": match_info["pairs"],
         "verified_pairs": verified, "max_features": int(max_features), "first_octave": int(first_octave),
