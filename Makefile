@@ -44,6 +44,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_segment.py
 	$(PY) benchmarks/bench_peers.py
 	$(PY) benchmarks/bench_eval.py
+	$(PY) benchmarks/bench_multiview.py
 
 # the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill).
 # The segmenter trains in two stages: from scratch on synthetic / cut-out scenes, then fine-tuned with sharp

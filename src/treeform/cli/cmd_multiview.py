@@ -20,12 +20,15 @@ def multiview(
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
+    masks: Optional[Path] = typer.Option(None, "--masks", help="Folder of per-photo mattes <photo stem>.png "
+                                         "(labels 0/1/2 or white = tree) instead of the segmenter."),
 ):
     """Several photos around a tree -> 3D tree: SfM, mattes, visual hull, branch graph, growth (Tan et al. 2007)."""
     from treeform.methods.multiview.pipeline import STAGES, reconstruct_multiview
 
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
-                  height=height, segmenter=segmenter, inputs=(("PHOTO_DIR", photos),))
+                  height=height, segmenter=segmenter, masks=masks,
+                  inputs=(("PHOTO_DIR", photos), ("--masks", masks)))
     m = res.metrics
     typer.echo(f"{m['registered']}/{m['photos']} photos registered, tree {m['tree_height_m']:.1f} m, "
                f"{m['nodes']} branch nodes ({m['visible_nodes']} seen), {m['leaves']} leaves, "

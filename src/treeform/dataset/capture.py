@@ -714,7 +714,7 @@ def _scene(rng, tree, height: float, crown: float, eyes, trunk_r: float, clutter
     ``eyes``: (N, 3) camera positions; ``trunk_r``: the trunk's radius at its foot.
     """
     from treeform.growth.species import SPECIES
-    from treeform.structures import Material, MeshPart
+    from treeform.structures import Material
 
     cams_xz = [(float(x), float(z)) for x, _y, z in eyes]
     min_eye = float(min(y for _x, y, _z in eyes))
@@ -951,7 +951,6 @@ def _sky_image(cam, clouds: np.ndarray, step: int = 8) -> np.ndarray:
     d = r[None, None, :] * xs[None, :, None] + u[None, None, :] * ys[:, None, None] + f[None, None, :]
     d /= np.linalg.norm(d, axis=2, keepdims=True)
     el = np.arcsin(np.clip(d[..., 1], -1, 1))
-    az = np.arctan2(d[..., 0], d[..., 2])
     t = (np.clip(el / (math.pi / 2), 0, 1) ** 0.6)[..., None]
     sky = np.array([206, 220, 236]) * (1 - t) + np.array([96, 140, 206]) * t
     # clouds: a texture on a horizontal layer far above, seen through each direction

@@ -18,7 +18,7 @@ def run(gl, tmp_path_factory):
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
     base = tmp_path_factory.mktemp("mv")
-    cap = synthetic_capture(base / "capture", views=16, size=480, species="oak", seed=0)
+    cap = synthetic_capture(base / "capture", views=24, size=480, species="oak", seed=0)
     res = reconstruct_multiview(cap.out / "images", out=base / "out", mask_size=320, leaves=1500, lod="low",
                                 segmenter="learned", seed=0)
     return cap, res, base / "out"
@@ -30,7 +30,7 @@ def test_outputs_and_cameras(run):
                  "config.json", "cameras.json", "points.ply"):
         assert (out / name).is_file(), name
     cams = json.loads((out / "cameras.json").read_text())
-    assert len(cams) >= 12  # >= 75 % of the 16 views registered
+    assert len(cams) >= 22  # >= 90 % of the 24 views registered
     for c in cams.values():
         T = np.array(c["cam_to_world"])
         assert np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5)
@@ -58,4 +58,21 @@ def test_too_few_photos_is_one_clear_error(tmp_path):
     Image.new("RGB", (64, 48), (90, 120, 60)).save(tmp_path / "a.jpg")
     with pytest.raises(InputError, match="at least 3"):
         reconstruct_multiview(tmp_path, out=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_user_mattes_replace_the_segmenter(run, tmp_path):
+    """With the capture's true mattes (--masks) the eye-height scale gives the true height."""
+    from treeform.methods.multiview.pipeline import reconstruct_multiview
+
+    cap, _, _ = run
+    res = reconstruct_multiview(cap.out / "images", masks=cap.out / "truth" / "labels", mask_size=320, leaves=500,
+                                lod="low", seed=0)
+    truth = json.loads((cap.out / "truth" / "meta.json").read_text())
+    assert abs(res.metrics["tree_height_m"] / truth["height"] - 1) < 0.2, (res.metrics["tree_height_m"], truth)
+    assert res.metrics["silhouette_iou_median"] > 0.3  # measured 0.37 here (320-px mattes); see the issue note
+    # a folder without a photo's matte: one clear error, nothing written
+    (tmp_path / "masks").mkdir()
+    with pytest.raises(InputError, match="no mask for"):
+        reconstruct_multiview(cap.out / "images", masks=tmp_path / "masks", out=tmp_path / "out")
     assert not (tmp_path / "out").exists()

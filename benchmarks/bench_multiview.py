@@ -1,0 +1,148 @@
+"""Multi-view route (issue 14) on a synthetic capture with ground truth.
+
+    python benchmarks/bench_multiview.py [--views 24] [--size 1024] [--species oak] [--seed 0]
+                                         [--mattes learned|classical|truth] [--capture DIR] [--out DIR]
+
+Makes (or reuses) a `treeform dataset capture`, runs `treeform multiview` on its photos and
+scores the result against the truth:
+
+- SfM: registration rate, camera position / rotation error after a similarity fit of the
+  camera centres (`treeform.sfm.evaluate.pose_errors`);
+- skeleton: the reconstruction mapped into the truth's frame by that similarity; mean and
+  95th-percentile distance from reconstructed branch points to the true branches and back,
+  for branches of radius >= 2 cm (as % of the true height too);
+- novel views: silhouette IoU of the reconstruction against the true tree from cameras
+  halfway between the input cameras;
+- the scale the route chose (its height / the true height) and seconds per stage.
+
+``--mattes truth`` feeds the capture's true labels as the per-view mattes (an oracle that
+separates matting errors from the rest).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _dense(positions, parent, radius, min_radius, step):
+    out = []
+    for k in range(1, len(parent)):
+        if radius[k] < min_radius:
+            continue
+        a, b = positions[parent[k]], positions[k]
+        n = max(1, int(np.linalg.norm(b - a) / step))
+        out.append(a + (b - a) * np.linspace(0, 1, n + 1)[:, None])
+    return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def _mid_camera(Ta, Tb):
+    """A camera halfway between two (OpenCV cam_to_world): mean centre, mean (re-orthonormalised) axes."""
+    R = 0.5 * (Ta[:3, :3] + Tb[:3, :3])
+    u, _, vt = np.linalg.svd(R)
+    T = np.eye(4)
+    T[:3, :3] = u @ vt
+    T[:3, 3] = 0.5 * (Ta[:3, 3] + Tb[:3, 3])
+    return T
+
+
+def _render_mask(mesh, K, T, size, scale=0.5):
+    from treeform.render import Renderer
+    from treeform.sfm import SfmResult
+
+    cam = SfmResult(["v"], [K], [T], [size], np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), []).render_camera(
+        0, near=0.1, far=1000.0, scale=scale)
+    r = Renderer(cam, samples=1)
+    try:
+        return r.render(mesh).mask > 0
+    finally:
+        r.release()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--views", type=int, default=24)
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--species", default="oak")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--mattes", default="learned", choices=("learned", "classical", "truth"))
+    ap.add_argument("--capture", type=Path, default=None, help="reuse a capture folder (made if missing)")
+    ap.add_argument("--out", type=Path, default=None, help="keep the reconstruction here")
+    ap.add_argument("--json", type=Path, default=None, help="write the scores here")
+    a = ap.parse_args(argv)
+
+    from treeform.dataset.capture import _read_model, synthetic_capture
+    from treeform.methods.multiview.pipeline import reconstruct_multiview
+    from treeform.sfm.evaluate import pose_errors
+    from treeform.structures import Mesh, MeshPart, TreeSkeleton
+    from scipy.spatial import cKDTree
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_mv_"))
+    cap = a.capture or tmp / "capture"
+    t0 = time.perf_counter()
+    if not (cap / "images").is_dir():
+        synthetic_capture(cap, views=a.views, size=a.size, species=a.species, seed=a.seed)
+    t_capture = time.perf_counter() - t0
+    truth = json.loads((cap / "truth" / "cameras.json").read_text())
+    meta = json.loads((cap / "truth" / "meta.json").read_text())
+    H = float(meta["height"])
+
+    t0 = time.perf_counter()
+    res = reconstruct_multiview(cap / "images", out=a.out or tmp / "out", segmenter=a.mattes if a.mattes != "truth"
+                                else "learned", masks=cap / "truth" / "labels" if a.mattes == "truth" else None,
+                                seed=a.seed)
+    t_total = time.perf_counter() - t0
+    pe = pose_errors(res.sfm, truth)
+    s, R, t = pe["scale"], np.asarray(pe["rotation"]), np.asarray(pe["translation"])
+    scores = {"views": len(truth), "size": meta["size"], "species": meta["species"], "mattes": a.mattes,
+              "registration_rate": pe["registration_rate"], "position_median_rel": pe["position_median_rel"],
+              "position_max_rel": pe["position_max_rel"], "rotation_median_deg": pe["rotation_median_deg"],
+              "rotation_max_deg": pe["rotation_max_deg"], "height_ratio": res.metrics["tree_height_m"] / H,
+              "seconds_total": round(t_total, 2), "seconds_capture": round(t_capture, 2),
+              "seconds": res.metrics["seconds"]}
+    # skeleton, in the truth's frame
+    sk = res.skeleton
+    rec_pos = s * sk.positions @ R.T + t
+    if (cap / "truth" / "skeleton.json").is_file():
+        gt = TreeSkeleton.load(cap / "truth" / "skeleton.json")
+        G = _dense(gt.positions, gt.parent, gt.radius, 0.02, 0.02)
+        Rc = _dense(rec_pos, sk.parent, s * sk.radius, 0.02, 0.02)
+        vis = int(res.metrics["visible_nodes"])
+        Rv = _dense(rec_pos[:vis], sk.parent[:vis], np.full(vis, 1.0), 0.0, 0.02)
+        if len(G) and len(Rc):
+            d1, d2 = cKDTree(G).query(Rc)[0], cKDTree(Rc).query(G)[0]
+            dv = cKDTree(G).query(Rv)[0] if len(Rv) else np.array([np.nan])
+            scores.update({
+                "skeleton_rec_to_gt_mean_pct": 100 * d1.mean() / H, "skeleton_rec_to_gt_p95_pct": 100 * np.percentile(d1, 95) / H,
+                "skeleton_gt_to_rec_mean_pct": 100 * d2.mean() / H, "skeleton_gt_to_rec_p95_pct": 100 * np.percentile(d2, 95) / H,
+                "skeleton_mean_pct": 100 * 0.5 * (d1.mean() + d2.mean()) / H,
+                "visible_rec_to_gt_mean_pct": 100 * float(np.mean(dv)) / H})
+    # novel views halfway between the input cameras
+    true_mesh = _read_model(cap / "truth" / "tree.glb")
+    rec = Mesh([MeshPart(s * p.positions @ R.T + t, p.normals @ R.T, p.uvs, p.colors, p.indices, p.material, p.name)
+                for p in res.mesh.parts])
+    names = sorted(truth)
+    ious = []
+    for k in range(len(names)):
+        A, B = truth[names[k]], truth[names[(k + 1) % len(names)]]
+        T = _mid_camera(np.asarray(A["cam_to_world"]), np.asarray(B["cam_to_world"]))
+        m_true = _render_mask(true_mesh, np.asarray(A["K"]), T, A["size"])
+        m_rec = _render_mask(rec, np.asarray(A["K"]), T, A["size"])
+        ious.append((m_true & m_rec).sum() / max((m_true | m_rec).sum(), 1))
+    scores["novel_view_iou_median"] = float(np.median(ious))
+    scores["novel_view_iou_min"] = float(np.min(ious))
+    scores = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in scores.items()}
+    print(json.dumps(scores, indent=1))
+    if a.json:
+        a.json.write_text(json.dumps(scores, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
