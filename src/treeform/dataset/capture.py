@@ -161,67 +161,51 @@ def _read_model(path: Path):
 
     from PIL import Image
 
-    from treeform.io.gltf import _node_matrix, accessor_array, read_glb
+    from treeform.io.gltf import accessor_array, read_glb, scene_primitives
     from treeform.structures import Material, Mesh, MeshPart
 
     gltf, bin_chunk = read_glb(path)
     parts, textures, groups = [], {}, {}
     try:
-        mats, nodes = gltf.get("materials", []), gltf.get("nodes", [])
-        scenes = gltf.get("scenes", [])
-        if scenes:
-            roots = list(scenes[gltf.get("scene", 0)].get("nodes", []))
-        else:
-            kids = {c for n in nodes for c in n.get("children", [])}
-            roots = [i for i in range(len(nodes)) if i not in kids]
-        stack = [(i, np.eye(4), 0) for i in roots]
-        while stack:
-            i, parent_m, depth = stack.pop()
-            if depth > 64:
-                raise InputError(f"model: {path}: glTF node hierarchy too deep (a cycle?)")
-            node = nodes[i]
-            m = parent_m @ _node_matrix(node)
-            stack.extend((c, m, depth + 1) for c in node.get("children", []))
-            if "mesh" not in node:
+        mats = gltf.get("materials", [])
+        for m, prim in scene_primitives(gltf, f"model: {path}"):
+            if prim.get("mode", 4) != 4:
                 continue
-            for prim in gltf["meshes"][node["mesh"]]["primitives"]:
-                if prim.get("mode", 4) != 4:
-                    continue
-                att = prim["attributes"]
-                pos = accessor_array(gltf, bin_chunk, att["POSITION"]).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
-                if "NORMAL" in att:
-                    nrm = accessor_array(gltf, bin_chunk, att["NORMAL"]).astype(np.float64) @ np.linalg.inv(m[:3, :3])
-                    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-                else:
-                    nrm = np.zeros_like(pos)
-                uv = (accessor_array(gltf, bin_chunk, att["TEXCOORD_0"]).astype(np.float32) if "TEXCOORD_0" in att
-                      else np.zeros((len(pos), 2), np.float32))
-                idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64).reshape(-1, 3)
-                       if "indices" in prim else np.arange(len(pos) - len(pos) % 3).reshape(-1, 3))
-                if np.linalg.det(m[:3, :3]) < 0:
-                    idx = idx[:, ::-1]
-                mat = mats[prim["material"]] if "material" in prim else {}
-                pbr = mat.get("pbrMetallicRoughness", {})
-                ref = pbr.get("baseColorTexture")
-                tex = None
-                if ref is not None:
-                    k = gltf["textures"][ref["index"]]["source"]
-                    if k not in textures:
-                        view = gltf["bufferViews"][gltf["images"][k]["bufferView"]]
-                        start = view.get("byteOffset", 0)
-                        with Image.open(_io.BytesIO(bin_chunk[start:start + view["byteLength"]])) as im:
-                            textures[k] = np.ascontiguousarray(np.asarray(im.convert("RGBA")))
-                    tex = textures[k]
-                mode = mat.get("alphaMode", "OPAQUE")
-                name = str(mat.get("name", ""))
-                leafy = mode != "OPAQUE" or any(w in name.lower() for w in ("leaf", "leaves", "foliage", "needle"))
-                material = Material("leaves" if leafy else "bark", tuple(pbr.get("baseColorFactor", (1, 1, 1, 1))),
-                                    tex, "MASK" if mode == "BLEND" else mode, float(mat.get("alphaCutoff", 0.5)),
-                                    bool(mat.get("doubleSided", False)), float(pbr.get("roughnessFactor", 1.0)), 0.0)
-                key = prim.get("material", -1)  # one part per material: the renderer caches a few dozen parts
-                if key not in groups:
-                    groups[key] = (material, [])
-                groups[key][1].append((pos, nrm, uv, idx))
+            att = prim["attributes"]
+            pos = accessor_array(gltf, bin_chunk, att["POSITION"]).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+            if "NORMAL" in att:
+                nrm = accessor_array(gltf, bin_chunk, att["NORMAL"]).astype(np.float64) @ np.linalg.inv(m[:3, :3])
+                nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+            else:
+                nrm = np.zeros_like(pos)
+            uv = (accessor_array(gltf, bin_chunk, att["TEXCOORD_0"]).astype(np.float32) if "TEXCOORD_0" in att
+                  else np.zeros((len(pos), 2), np.float32))
+            idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64).reshape(-1, 3)
+                   if "indices" in prim else np.arange(len(pos) - len(pos) % 3).reshape(-1, 3))
+            if np.linalg.det(m[:3, :3]) < 0:
+                idx = idx[:, ::-1]
+            mat = mats[prim["material"]] if "material" in prim else {}
+            pbr = mat.get("pbrMetallicRoughness", {})
+            ref = pbr.get("baseColorTexture")
+            tex = None
+            if ref is not None:
+                k = gltf["textures"][ref["index"]]["source"]
+                if k not in textures:
+                    view = gltf["bufferViews"][gltf["images"][k]["bufferView"]]
+                    start = view.get("byteOffset", 0)
+                    with Image.open(_io.BytesIO(bin_chunk[start:start + view["byteLength"]])) as im:
+                        textures[k] = np.ascontiguousarray(np.asarray(im.convert("RGBA")))
+                tex = textures[k]
+            mode = mat.get("alphaMode", "OPAQUE")
+            name = str(mat.get("name", ""))
+            leafy = mode != "OPAQUE" or any(w in name.lower() for w in ("leaf", "leaves", "foliage", "needle"))
+            material = Material("leaves" if leafy else "bark", tuple(pbr.get("baseColorFactor", (1, 1, 1, 1))),
+                                tex, "MASK" if mode == "BLEND" else mode, float(mat.get("alphaCutoff", 0.5)),
+                                bool(mat.get("doubleSided", False)), float(pbr.get("roughnessFactor", 1.0)), 0.0)
+            key = prim.get("material", -1)  # one part per material: the renderer caches a few dozen parts
+            if key not in groups:
+                groups[key] = (material, [])
+            groups[key][1].append((pos, nrm, uv, idx))
     except InputError:
         raise
     except (KeyError, IndexError, TypeError, ValueError, OSError) as exc:

@@ -500,6 +500,34 @@ def _node_matrix(node: dict):
     return m
 
 
+def scene_primitives(gltf: dict, path):
+    """Yield ``(world_matrix (4, 4), primitive)`` for every mesh primitive of the default scene.
+
+    Node transforms are composed from the scene's roots (every parentless node when the file
+    has no scene); a hierarchy deeper than 64 (a cycle) is an InputError naming ``path``.
+    Malformed node or mesh entries raise KeyError / IndexError / TypeError for the caller to
+    turn into its own message.
+    """
+    nodes = gltf.get("nodes", [])
+    scenes = gltf.get("scenes", [])
+    if scenes:
+        roots = list(scenes[gltf.get("scene", 0)].get("nodes", []))
+    else:
+        kids = {c for n in nodes for c in n.get("children", [])}
+        roots = [i for i in range(len(nodes)) if i not in kids]
+    stack = [(i, np.eye(4), 0) for i in roots]
+    while stack:
+        i, parent_m, depth = stack.pop()
+        if depth > 64:
+            raise InputError(f"{path}: glTF node hierarchy too deep (a cycle?)")
+        node = nodes[i]
+        m = parent_m @ _node_matrix(node)
+        stack.extend((c, m, depth + 1) for c in node.get("children", []))
+        if "mesh" in node:
+            for prim in gltf["meshes"][node["mesh"]]["primitives"]:
+                yield m, prim
+
+
 def read_glb_geometry(path) -> tuple[np.ndarray, np.ndarray | None]:
     """All vertex positions and the leaf triangles of a GLB, in world space.
 
@@ -518,34 +546,18 @@ def read_glb_geometry(path) -> tuple[np.ndarray, np.ndarray | None]:
         Not a GLB, a malformed scene or mesh, a node cycle, or no vertices.
     """
     gltf, bin_chunk = read_glb(path)
-    mats, nodes = gltf.get("materials", []), gltf.get("nodes", [])
+    mats = gltf.get("materials", [])
     verts, leaves = [], []
     try:
-        scenes = gltf.get("scenes", [])
-        if scenes:
-            roots = list(scenes[gltf.get("scene", 0)].get("nodes", []))
-        else:
-            kids = {c for n in nodes for c in n.get("children", [])}
-            roots = [i for i in range(len(nodes)) if i not in kids]
-        stack = [(i, np.eye(4), 0) for i in roots]
-        while stack:
-            i, parent_m, depth = stack.pop()
-            if depth > 64:
-                raise InputError(f"{path}: glTF node hierarchy too deep (a cycle?)")
-            node = nodes[i]
-            m = parent_m @ _node_matrix(node)
-            stack.extend((c, m, depth + 1) for c in node.get("children", []))
-            if "mesh" not in node:
-                continue
-            for prim in gltf["meshes"][node["mesh"]]["primitives"]:
-                pos = accessor_array(gltf, bin_chunk, prim["attributes"]["POSITION"]).astype(np.float64)
-                pos = pos @ m[:3, :3].T + m[:3, 3]
-                verts.append(pos)
-                mat = mats[prim["material"]].get("name", "") if "material" in prim else ""
-                if mat == "leaves" and prim.get("mode", 4) == 4:
-                    idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64)
-                           if "indices" in prim else np.arange(len(pos)))
-                    leaves.append(pos[idx.reshape(-1, 3)])
+        for m, prim in scene_primitives(gltf, path):
+            pos = accessor_array(gltf, bin_chunk, prim["attributes"]["POSITION"]).astype(np.float64)
+            pos = pos @ m[:3, :3].T + m[:3, 3]
+            verts.append(pos)
+            mat = mats[prim["material"]].get("name", "") if "material" in prim else ""
+            if mat == "leaves" and prim.get("mode", 4) == 4:
+                idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64)
+                       if "indices" in prim else np.arange(len(pos)))
+                leaves.append(pos[idx.reshape(-1, 3)])
     except (KeyError, IndexError, TypeError, ValueError):
         raise InputError(f"{path}: malformed glTF scene or mesh data") from None
     if not verts or not sum(len(v) for v in verts):

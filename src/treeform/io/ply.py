@@ -63,19 +63,8 @@ def write_points_ply(path, points, colors, labels) -> Path:
     verts["x"], verts["y"], verts["z"] = pts.T
     verts["red"], verts["green"], verts["blue"] = np.clip(cols, 0, 255).astype(np.uint8).T
     verts["label"] = labs.astype(np.uint8)
-    header = "\n".join([
-        "ply", "format binary_little_endian 1.0",
-        "comment treeform points: metres, +Y up; label 0 background, 1 branch, 2 leaf",
-        f"element vertex {n}",
-        "property float x", "property float y", "property float z",
-        "property uchar red", "property uchar green", "property uchar blue", "property uchar label",
-        "end_header",
-    ]) + "\n"
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            f.write(header.encode("ascii"))
-            f.write(verts.tobytes())
-    return Path(path)
+    return _write_binary_ply(path, "treeform points: metres, +Y up; label 0 background, 1 branch, 2 leaf",
+                             [("vertex", verts)])
 
 
 def read_points_ply(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -127,22 +116,26 @@ def write_skeleton_ply(skeleton: TreeSkeleton, path) -> Path:
     edges = np.empty(n - 1, _EDGE_DTYPE)
     edges["vertex1"] = skeleton.parent[1:]
     edges["vertex2"] = np.arange(1, n)
-    header = "\n".join([
-        "ply",
-        "format binary_little_endian 1.0",
-        "comment treeform skeleton: metres, +Y up; edges are (parent, child)",
-        f"element vertex {n}",
-        "property float x", "property float y", "property float z",
-        "property float radius", "property int order",
-        f"element edge {n - 1}",
-        "property int vertex1", "property int vertex2",
-        "end_header",
-    ]) + "\n"
+    return _write_binary_ply(path, "treeform skeleton: metres, +Y up; edges are (parent, child)",
+                             [("vertex", verts), ("edge", edges)])
+
+
+_PLY_NAMES = {"<f4": "float", "<f8": "double", "<i4": "int", "|u1": "uchar", "|i1": "char", "<i2": "short",
+              "<u2": "ushort", "<u4": "uint"}
+
+
+def _write_binary_ply(path, comment: str, elements) -> Path:
+    """Write ``elements`` (``(name, structured array)`` pairs) as binary little-endian PLY, atomically."""
+    lines = ["ply", "format binary_little_endian 1.0", f"comment {comment}"]
+    for name, arr in elements:
+        lines.append(f"element {name} {len(arr)}")
+        lines += [f"property {_PLY_NAMES[arr.dtype[f].str]} {f}" for f in arr.dtype.names]
+    lines.append("end_header")
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            f.write(header.encode("ascii"))
-            f.write(verts.tobytes())
-            f.write(edges.tobytes())
+            f.write(("\n".join(lines) + "\n").encode("ascii"))
+            for _name, arr in elements:
+                f.write(arr.tobytes())
     return Path(path)
 
 
