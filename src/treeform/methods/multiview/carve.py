@@ -59,10 +59,6 @@ class CarvedTree:
     def __len__(self) -> int:
         return len(self.points)
 
-    def subset(self, keep: np.ndarray) -> "CarvedTree":
-        return CarvedTree(self.points[keep], self.size[keep], self.thickness[keep], self.wood[keep],
-                          self.seen[keep], self.colors[keep])
-
 
 def _project(points, w2c, K):
     pc = points @ w2c[:3, :3].T + w2c[:3, 3]
