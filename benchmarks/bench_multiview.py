@@ -15,6 +15,10 @@ scores the result against the truth:
   halfway between the input cameras;
 - the scale the route chose (its height / the true height) and seconds per stage.
 
+- the peer: pc-skeletor (PyPI; Laplacian-based contraction) on the same branch points the
+  route's visible branch graph is built from, scored the same way (``--no-peer`` to skip;
+  its own venv, made by ``benchmarks/peers/pc_skeletor_setup.sh`` on first use);
+
 ``--mattes truth`` feeds the capture's true labels as the per-view mattes (an oracle that
 separates matting errors from the rest).
 """
@@ -40,6 +44,38 @@ def _dense(positions, parent, radius, min_radius, step):
         n = max(1, int(np.linalg.norm(b - a) / step))
         out.append(a + (b - a) * np.linspace(0, 1, n + 1)[:, None])
     return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+PEERS = Path(__file__).resolve().parent / "peers"
+
+
+def _pc_skeletor(points: np.ndarray, work: Path):
+    """pc-skeletor's skeleton of ``points`` (nodes, edges, seconds), or None with a printed reason."""
+    import subprocess
+
+    py = PEERS / ".venv-pcs" / "bin" / "python"
+    if not py.is_file():
+        r = subprocess.run(["bash", str(PEERS / "pc_skeletor_setup.sh")], capture_output=True, text=True, check=False)
+        if r.returncode != 0 or not py.is_file():
+            print(f"peer skipped: {(r.stderr or r.stdout).strip().splitlines()[-1:]}", file=sys.stderr)
+            return None
+    np.save(work / "branch_points.npy", points)
+    r = subprocess.run([str(py), str(PEERS / "pc_skeletor_run.py"), str(work / "branch_points.npy"),
+                        str(work / "pcs.json")], capture_output=True, text=True, timeout=1800, check=False)
+    if r.returncode != 0:
+        print(f"peer failed: {r.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+        return None
+    out = json.loads((work / "pcs.json").read_text())
+    return np.asarray(out["nodes"], np.float64).reshape(-1, 3), np.asarray(out["edges"], np.int64).reshape(-1, 2), \
+        float(out["seconds"])
+
+
+def _dense_edges(nodes, edges, step):
+    out = [nodes]
+    for a, b in edges:
+        n = max(1, int(np.linalg.norm(nodes[b] - nodes[a]) / step))
+        out.append(nodes[a] + (nodes[b] - nodes[a]) * np.linspace(0, 1, n + 1)[:, None])
+    return np.concatenate(out)
 
 
 def _mid_camera(Ta, Tb):
@@ -75,13 +111,15 @@ def main(argv=None) -> int:
     ap.add_argument("--capture", type=Path, default=None, help="reuse a capture folder (made if missing)")
     ap.add_argument("--out", type=Path, default=None, help="keep the reconstruction here")
     ap.add_argument("--json", type=Path, default=None, help="write the scores here")
+    ap.add_argument("--no-peer", action="store_true", help="skip pc-skeletor")
     a = ap.parse_args(argv)
+
+    from scipy.spatial import cKDTree
 
     from treeform.dataset.capture import _read_model, synthetic_capture
     from treeform.methods.multiview.pipeline import reconstruct_multiview
     from treeform.sfm.evaluate import pose_errors
     from treeform.structures import Mesh, MeshPart, TreeSkeleton
-    from scipy.spatial import cKDTree
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_mv_"))
     cap = a.capture or tmp / "capture"
@@ -118,11 +156,26 @@ def main(argv=None) -> int:
         if len(G) and len(Rc):
             d1, d2 = cKDTree(G).query(Rc)[0], cKDTree(Rc).query(G)[0]
             dv = cKDTree(G).query(Rv)[0] if len(Rv) else np.array([np.nan])
+            dv2 = cKDTree(Rv).query(G)[0] if len(Rv) else np.array([np.nan])
             scores.update({
                 "skeleton_rec_to_gt_mean_pct": 100 * d1.mean() / H, "skeleton_rec_to_gt_p95_pct": 100 * np.percentile(d1, 95) / H,
                 "skeleton_gt_to_rec_mean_pct": 100 * d2.mean() / H, "skeleton_gt_to_rec_p95_pct": 100 * np.percentile(d2, 95) / H,
                 "skeleton_mean_pct": 100 * 0.5 * (d1.mean() + d2.mean()) / H,
-                "visible_rec_to_gt_mean_pct": 100 * float(np.mean(dv)) / H})
+                "visible_rec_to_gt_mean_pct": 100 * float(np.mean(dv)) / H,
+                "visible_gt_to_rec_mean_pct": 100 * float(np.mean(dv2)) / H,
+                "visible_mean_pct": 100 * 0.5 * float(np.mean(dv) + np.mean(dv2)) / H})
+            # the peer on the same branch points
+            pts = res.carved.points[res.branch]
+            peer = None if a.no_peer or len(pts) < 10 else _pc_skeletor(pts, tmp)
+            if peer is not None:
+                nodes, edges, secs = peer
+                P = _dense_edges(s * nodes @ R.T + t, edges, 0.02)
+                e1, e2 = cKDTree(G).query(P)[0], cKDTree(P).query(G)[0]
+                scores.update({"peer": "pc-skeletor 1.0.0 (LBC)", "peer_points": len(pts),
+                               "peer_seconds": round(secs, 2),
+                               "peer_rec_to_gt_mean_pct": 100 * e1.mean() / H,
+                               "peer_gt_to_rec_mean_pct": 100 * e2.mean() / H,
+                               "peer_mean_pct": 100 * 0.5 * (e1.mean() + e2.mean()) / H})
     # novel views halfway between the input cameras
     true_mesh = _read_model(cap / "truth" / "tree.glb")
     rec = Mesh([MeshPart(s * p.positions @ R.T + t, p.normals @ R.T, p.uvs, p.colors, p.indices, p.material, p.name)

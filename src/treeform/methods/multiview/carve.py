@@ -12,6 +12,9 @@ the sky carve into thin tubes and the crown into its volume. Each surviving cell
   in metres at the cell's depth (a branch of radius r seen against the sky gives about r;
   a crown gives metres; the median, not the smallest, since a porous crown shows the sky
   through a gap from some views);
+- an **edge** distance: the smallest, over the views, distance from the cell's projection
+  to its silhouette's edge, in metres at the cell's depth (about 0 on the hull's surface:
+  where leaves are seen; large deep inside the crown);
 - **votes**: the share of views whose label at the cell's projection is wood;
 - a **colour**: the median image colour over the views that label it tree.
 
@@ -27,7 +30,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 
-__all__ = ["CarvedTree", "carve_tree"]
+__all__ = ["CarvedTree", "carve_tree", "main_component"]
 
 
 @dataclass
@@ -47,6 +50,12 @@ class CarvedTree:
     seen : ndarray, shape (P,), int
         Number of views whose frame holds the cell.
     colors : ndarray, shape (P, 3), uint8
+    edge : ndarray, shape (P,)
+        Distance (metres) from the cell to the nearest silhouette edge, the smallest over the
+        views (see the module notes).
+    support : ndarray, shape (P,)
+        Share of the seeing views whose tree mask reaches the cell (1: every view agrees;
+        ``1 - tolerance`` at the least).
     """
 
     points: np.ndarray
@@ -55,9 +64,16 @@ class CarvedTree:
     wood: np.ndarray
     seen: np.ndarray
     colors: np.ndarray
+    edge: np.ndarray
+    support: np.ndarray
 
     def __len__(self) -> int:
         return len(self.points)
+
+    def subset(self, keep) -> CarvedTree:
+        """The cells selected by a boolean mask or an index array."""
+        return CarvedTree(self.points[keep], self.size[keep], self.thickness[keep], self.wood[keep],
+                          self.seen[keep], self.colors[keep], self.edge[keep], self.support[keep])
 
 
 def _project(points, w2c, K):
@@ -69,7 +85,7 @@ def _project(points, w2c, K):
 
 
 def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float = 0.12, close_px: int = 2,
-               width_px: int = 6, images=None, progress=None) -> CarvedTree:
+               width_px: int = 6, surface_voxel: float | None = None, images=None, progress=None) -> CarvedTree:
     """Carve the visual hull of the per-view tree masks on an octree.
 
     Parameters
@@ -87,6 +103,10 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
         the hull (its interior needs no finer cells), and one where the hull is wide
         (thicker than three cell edges: the crown's surface, drawn with leaf cards anyway);
         only thin parts — branches — reach ``voxel``.
+    surface_voxel : float, optional
+        Refine wide parts too, down to this edge (>= ``voxel``): the crown's surface then
+        follows its silhouettes within a cell of this size, gaps and bays included (the
+        leaves are placed on it). None: wide parts stay as coarse as three times their width.
     tolerance : float
         Share of the views that see a cell whose mask may miss it (segmentation errors).
     close_px : int
@@ -113,6 +133,9 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
         raise InputError("carve_tree: needs at least 2 views")
     if not voxel > 0:
         raise InputError(f"voxel: expected a positive size, got {voxel!r}")
+    if surface_voxel is not None and not surface_voxel >= voxel:
+        raise InputError(f"surface_voxel: expected a size >= voxel ({voxel}), got {surface_voxel!r}")
+    fine_surface = float(surface_voxel) if surface_voxel is not None else -1.0
     lo, hi = (np.asarray(b, np.float64).reshape(3) for b in box)
     if not np.all(hi > lo):
         raise InputError("box: expected lo < hi on every axis")
@@ -171,7 +194,9 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
             inside[ok] += dist_in[i][row, col] > r_px
             wide[i, ok] = width[i][row, col] * z[ok] / focal[i]
         keep = (seen >= min_seen) & (hit >= np.ceil((1.0 - tolerance) * seen))
-        done = keep & ((inside >= np.ceil((1.0 - tolerance) * seen)) | (_nanmedian(wide) > 3.0 * edge))
+        wide_done = (_nanmedian(wide) > 3.0 * edge) if edge <= fine_surface * (1 + 1e-9) or fine_surface < 0 \
+            else np.zeros(n, bool)
+        done = keep & ((inside >= np.ceil((1.0 - tolerance) * seen)) | wide_done)
         if level == n_levels:
             break
         # cells wholly inside the hull, or where it is wide, stay as they are; the rest split into 8
@@ -185,7 +210,7 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
     last = centers[keep] if len(centers) else np.zeros((0, 3))
     points = np.concatenate(done_pts + [last]) if done_pts else last
     size = np.concatenate(done_size + [np.full(len(last), edge)]) if done_size else np.full(len(last), edge)
-    return _describe(points, size, K, w2c, focal, width, labs, images)
+    return _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, images)
 
 
 def _nanmedian(a: np.ndarray) -> np.ndarray:
@@ -204,9 +229,12 @@ def _disk(r: int) -> np.ndarray:
     return x * x + y * y <= r * r
 
 
-def _describe(points, size, K, w2c, focal, width, labs, images) -> CarvedTree:
+def _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, images) -> CarvedTree:
     n = len(points)
     thick = np.full((len(K), n), np.nan, np.float32)
+    edge = np.full(n, np.inf)
+    hit = np.zeros(n, np.int32)
+    half = 0.5 * np.sqrt(3.0) * np.asarray(size, np.float64)
     wood = np.zeros(n)
     seen = np.zeros(n, np.int32)
     cols = [] if images is not None else None
@@ -218,6 +246,9 @@ def _describe(points, size, K, w2c, focal, width, labs, images) -> CarvedTree:
         row = np.clip(np.nan_to_num(uv[:, 1]).astype(int), 0, h - 1)
         d = width[i][row, col] * z / focal[i]
         thick[i, ok] = d[ok]
+        edge[ok] = np.minimum(edge[ok], (dist_in[i][row, col] * z / focal[i])[ok])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            hit += ok & (dist_out[i][row, col] <= focal[i] * half / z + 0.75)
         lab = labs[i][row, col]
         seen += ok
         wood += ok & (lab == 2)
@@ -233,4 +264,58 @@ def _describe(points, size, K, w2c, focal, width, labs, images) -> CarvedTree:
         colors = np.nan_to_num(med, nan=128.0).clip(0, 255).astype(np.uint8)
     else:
         colors = np.full((n, 3), 128, np.uint8)
-    return CarvedTree(points, size, thick, wood / np.maximum(seen, 1), seen, colors)
+    edge[~np.isfinite(edge)] = 0.0
+    return CarvedTree(points, size, thick, wood / np.maximum(seen, 1), seen, colors, edge,
+                      hit / np.maximum(seen, 1))
+
+
+def main_component(carved: CarvedTree, center, radius: float) -> np.ndarray:
+    """The cells of the connected piece of the hull that fills a vertical column the most.
+
+    The views' mattes may agree on more than the tree: a neighbouring tree or a hedge at the
+    edge of the camera ring, seen by only the cameras across the ring. The tree is the piece
+    that the cameras look at: of the pieces of touching cells (26-connected octree cubes), the
+    one with the most volume within ``radius`` of the vertical axis through ``center``.
+
+    Parameters
+    ----------
+    carved : CarvedTree
+    center : array_like, shape (3,)
+        A point on the axis (its y is ignored).
+    radius : float
+        Radius of the column.
+
+    Returns
+    -------
+    ndarray, shape (P,), bool
+        All False when no cell lies in the column.
+
+    Examples
+    --------
+    >>> pts = np.array([[0, 0, 0], [0, 1, 0], [5, 0, 0.]])
+    >>> c = CarvedTree(pts, np.ones(3), np.ones(3), np.zeros(3), np.ones(3, int), np.zeros((3, 3), np.uint8),
+    ...                np.zeros(3), np.ones(3))
+    >>> main_component(c, [0, 0, 0], 1.0).tolist()
+    [True, True, False]
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(carved)
+    if n == 0:
+        return np.zeros(0, bool)
+    pts, size = carved.points, carved.size
+    pairs = cKDTree(pts).query_pairs(r=float(size.max()) * (1 + 1e-6), p=np.inf, output_type="ndarray")
+    if len(pairs):
+        gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]]).max(1)
+        pairs = pairs[gap <= 0.5 * (size[pairs[:, 0]] + size[pairs[:, 1]]) * (1 + 1e-6)]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
+        coo_matrix((n, n))
+    _, comp = connected_components(graph, directed=False)
+    c = np.asarray(center, np.float64).reshape(3)
+    near = np.hypot(pts[:, 0] - c[0], pts[:, 2] - c[2]) <= radius
+    if not near.any():
+        return np.zeros(n, bool)
+    vol = np.bincount(comp[near], weights=size[near] ** 3, minlength=comp.max() + 1)
+    return comp == int(np.argmax(vol))

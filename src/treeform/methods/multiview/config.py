@@ -4,7 +4,12 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from treeform._shared.checks import check_choice, check_height, check_int, check_positive
+from treeform._shared.checks import (
+    check_choice,
+    check_height,
+    check_int,
+    check_positive,
+)
 
 __all__ = ["MultiviewConfig"]
 
@@ -26,15 +31,17 @@ class MultiviewConfig:
     segmenter: str = "learned"
     """Tree matting per view: 'learned' (the network) or 'classical' (the colour rules)."""
     cells: int = 400
-    """Finest carving cell = tree height / cells."""
+    """Finest carving cell (thin branches) = tree height / cells."""
+    surface_cells: int = 200
+    """Carving cell on the crown's surface (where the leaves go) = tree height / surface_cells."""
     tolerance: float = 0.25
     """Share of the views whose mask may miss a piece of the tree (occluders, segmentation errors)."""
-    leaves: int = 6000
-    """Leaf clusters."""
+    leaves: int = 15000
+    """Leaf clusters (most on the crown's surface seen in the photos, the rest on the twigs inside)."""
     lod: str = "medium"
     """Triangle budget (see treeform.geometry.LOD_PRESETS)."""
 
-    def validate(self) -> "MultiviewConfig":
+    def validate(self) -> MultiviewConfig:
         from treeform._shared.defaults import SEGMENTERS
         from treeform._shared.rng import as_rng
         from treeform.geometry import LOD_PRESETS
@@ -47,6 +54,7 @@ class MultiviewConfig:
         check_int(self.mask_size, "mask_size", 64, 4096)
         check_choice(self.segmenter, "segmenter", SEGMENTERS)
         check_int(self.cells, "cells", 50, 2000)
+        check_int(self.surface_cells, "surface_cells", 10, 2000)
         if not 0.0 <= float(self.tolerance) < 0.5:
             from treeform._shared.errors import InputError
 

@@ -36,6 +36,13 @@ __all__ = ["STAGES", "MultiviewResult", "reconstruct_multiview"]
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
 
+COVER = 0.65
+"""Share of a leaf-cluster card its texture covers."""
+SHELL_SHARE = 0.9
+"""Share of the leaf clusters placed on the crown's surface (the rest on the twigs inside)."""
+LEAF_SUPPORT = 0.92
+"""A surface cell carries leaves when at least this share of the views that see it hold it."""
+
 STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
 
 
@@ -116,6 +123,23 @@ def _hull_box(sfm) -> tuple[np.ndarray, np.ndarray]:
     return np.array([-r, low, -r]), np.array([r, top, r])
 
 
+def _ring(sfm) -> tuple[np.ndarray, float]:
+    """Where the cameras look (on the ground) and their median distance from it.
+
+    The point nearest, in least squares, to every camera's optical axis seen from above
+    (for cameras on an arc as well as on a circle); the cameras' median position when the
+    axes are parallel.
+    """
+    c = sfm.centers[:, [0, 2]]
+    d = sfm.cam_to_world[:, :3, 2][:, [0, 2]]
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    P = np.eye(2)[None] - d[:, :, None] * d[:, None, :]
+    A, b = P.sum(0), np.einsum("nij,nj->i", P, c)
+    xz = np.linalg.solve(A, b) if np.linalg.cond(A) < 1e6 else np.median(c, axis=0)
+    center = np.array([xz[0], 0.0, xz[1]])
+    return center, float(np.median(np.hypot(c[:, 0] - xz[0], c[:, 1] - xz[1])))
+
+
 def _crown_attractors(carved, branch: np.ndarray, n: int, rng) -> np.ndarray:
     """``n`` points spread over the leaf cells in proportion to their volume."""
     leaf = ~branch
@@ -165,12 +189,11 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     from treeform._shared.checks import check_known_options
     from treeform._shared.rng import as_rng
     from treeform.geometry import LOD_PRESETS, tree_mesh
-    from treeform.growth.leaves import twig_foliage
     from treeform.growth.radii import branch_orders, pipe_model_radii
     from treeform.growth.space_colonization import space_colonization
     from treeform.io.outputs import check_out_dir
     from treeform.methods.multiview.branch_graph import branch_skeleton
-    from treeform.methods.multiview.carve import carve_tree
+    from treeform.methods.multiview.carve import carve_tree, main_component
     from treeform.sfm import load_photos, run_sfm, to_tree_frame
     from treeform.structures import TreeSkeleton
 
@@ -198,6 +221,10 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         lo, hi = _hull_box(sfm)
         coarse = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
                             tolerance=cfg.tolerance)
+        # the tree is the piece of the hull the cameras look at (a neighbouring tree or a hedge at the
+        # ring's edge, seen only by the cameras across the ring, can survive the carving too)
+        axis, ring = _ring(sfm)
+        coarse = coarse.subset(main_component(coarse, axis, 0.35 * ring))
         if len(coarse) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
         foot, height = _tree_extent(coarse)
@@ -217,6 +244,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             raise NoTreeFoundError("no tree found: the carved volume lies above the cameras")
         # origin at the trunk's foot
         sfm = sfm.transformed(s, np.eye(3), -s * foot)
+        coarse_pts, coarse_size = s * (coarse.points - foot), s * coarse.size
         height *= s
         lo = np.array([-0.75 * height, -0.02 * height, -0.75 * height])
         hi = np.array([0.75 * height, 1.1 * height, 0.75 * height])
@@ -225,7 +253,13 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         hi[[0, 2]] = np.minimum(hi[[0, 2]], 0.95 * ring)
         voxel = height / cfg.cells
         carved = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=voxel, tolerance=cfg.tolerance,
-                            images=images)
+                            surface_voxel=max(voxel, height / cfg.surface_cells), images=images)
+        # only what lies in the coarse hull's tree piece
+        if len(carved):
+            from scipy.spatial import cKDTree
+
+            d, k = cKDTree(coarse_pts).query(carved.points, p=np.inf)
+            carved = carved.subset(d <= 0.5 * coarse_size[k] + voxel)
         if len(carved) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
     with timer.stage("branches"):
@@ -243,8 +277,10 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             ys = np.linspace(0.0, max(bottom, 0.1 * height), 6)
             visible = TreeSkeleton(np.column_stack([np.zeros(6), ys, np.zeros(6)]), np.arange(-1, 5),
                                    np.full(6, 0.02 * height))
-        # the mattes' blur widens thin wood: a trunk no wider than 1.5 % of the height
-        trunk_r = min(float(np.median(visible.radius[: max(3, visible.n_nodes // 20)])), 0.015 * height)
+        # the mattes' blur widens thin wood (and a segmenter may take the trunk's shadow or a bush
+        # behind it into the trunk): a trunk radius no more than 1 % of the height (open-grown
+        # trees measure 0.4-1 %; the 24-view oak capture 0.6 %)
+        trunk_r = min(float(np.median(visible.radius[: max(3, visible.n_nodes // 20)])), 0.01 * height)
     with timer.stage("growth"):
         att = _crown_attractors(carved, branch, 4000, rng)
         start_pos, start_par = visible.positions, visible.parent
@@ -261,25 +297,23 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         skeleton = TreeSkeleton(pos, par, radius, branch_orders(par, radius))
         skeleton.meta.update({"method": "multiview", "visible_nodes": int(visible.n_nodes)})
     with timer.stage("leaves"):
-        leaf = ~branch
-        crown_rgb = carved.colors[leaf] if leaf.any() else carved.colors
-        base = np.median(crown_rgb, axis=0) / 255.0 if len(crown_rgb) else np.array([0.3, 0.45, 0.2])
-        size = float(np.clip(0.03 * height, 0.15, 0.8))
-        foliage = twig_foliage(skeleton, leaf_color=base, size=size, leaves=cfg.leaves, seed=rng)
-        if len(foliage) and leaf.any():
-            from scipy.spatial import cKDTree
-
-            k = cKDTree(carved.points[leaf]).query(foliage.positions)[1]
-            col = crown_rgb[k] / 255.0 * rng.normal(1.0, 0.06, (len(foliage), 1))
-            foliage = foliage.with_colors(np.column_stack([np.clip(col, 0, 1), np.ones(len(foliage))])
-                                          if foliage.color.shape[1] == 4 else np.clip(col, 0, 1))
+        foliage = _leaves(carved, branch, skeleton, height, cfg, rng)
     with timer.stage("mesh"):
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], seed=cfg.seed)
     with timer.stage("render"):
+        # the leaves' tints are the photos' colours, which already hold the day's light: lit again,
+        # they render darker than the photos. Scale them until the model, seen from the photos'
+        # cameras, has the photos' leaf colours (twice: the display encoding is not linear).
+        for _ in range(2):
+            gain = _leaf_gain(mesh, sfm, images, labels)
+            if gain is None or np.all(np.abs(gain - 1.0) < 0.03):
+                break
+            foliage = foliage.with_colors(np.clip(foliage.color * gain, 0.0, 1.0))
+            mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], seed=cfg.seed)
         preview, iou = _preview(mesh, sfm, images, labels)
     metrics = {
         "photos": len(views), "registered": sfm.n_cameras, "unregistered": list(sfm.unregistered),
-        "sfm_points": int(len(sfm.points)), "carved_cells": int(len(carved)),
+        "sfm_points": len(sfm.points), "carved_cells": len(carved),
         "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
         "leaves": len(foliage), "triangles": mesh.n_triangles, "tree_height_m": round(float(height), 4),
         "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
@@ -298,6 +332,62 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     return result
 
 
+def _leaf_size(points: np.ndarray, n: int, height: float) -> float:
+    """The card edge with which ``n`` clusters cover the crown's surface about once.
+
+    The surface is about four times the crown's side view (a sphere's is), the side view is
+    the mean area of the leaf cells seen along x and along z, and a cluster texture covers
+    about 65 % of its card; clipped to 0.8-8 % of the tree's height.
+    """
+    if len(points) == 0:
+        return 0.02 * height
+    g = height / 100.0
+    cells = np.floor(points / g).astype(np.int64)
+    side = 0.5 * (len(np.unique(cells[:, [0, 1]], axis=0)) + len(np.unique(cells[:, [2, 1]], axis=0))) * g * g
+    return float(np.clip(np.sqrt(4.0 * side / (COVER * n)), 0.008 * height, 0.08 * height))
+
+
+def _leaves(carved, branch, skeleton, height, cfg, rng):
+    """Leaf clusters where the photos see leaves: on the hull's surface, and a share on the twigs inside.
+
+    The crown's surface is where the views' silhouettes are (cells within half a card of a
+    silhouette's edge in some view, held by nearly every view's mask); clusters spread over
+    it in proportion to the cells' area follow its bays and gaps, so the model's outline
+    matches the photos' from every side (seed 002 §6 places its leaves from the photos too).
+    The rest hang on the grown twigs, seen through the gaps. Each cluster takes the colour
+    of the photos at its nearest leaf cell.
+    """
+    from scipy.spatial import cKDTree
+
+    from treeform.growth.leaves import attach_leaves, twig_foliage
+    from treeform.structures import Foliage
+
+    leaf = ~branch
+    size = _leaf_size(carved.points[leaf], max(1, round(SHELL_SHARE * cfg.leaves)), height)
+    crown_rgb = carved.colors[leaf] if leaf.any() else carved.colors
+    base = np.median(crown_rgb, axis=0) / 255.0 if len(crown_rgb) else np.array([0.3, 0.45, 0.2])
+    shell = np.flatnonzero(leaf & (carved.edge <= 0.5 * size) & (carved.support >= LEAF_SUPPORT))
+    n_shell = round(SHELL_SHARE * cfg.leaves) if len(shell) else 0
+    parts = []
+    if n_shell:
+        area = carved.size[shell] ** 2
+        pick = shell[rng.choice(len(shell), size=n_shell, p=area / area.sum())]
+        pos = carved.points[pick] + (rng.random((n_shell, 3)) - 0.5) * carved.size[pick, None]
+        center = np.median(carved.points[leaf], axis=0)
+        parts.append(attach_leaves(skeleton, pos, size=size, center=center, scatter=1.5, seed=rng))
+    parts.append(twig_foliage(skeleton, leaf_color=base, size=size, leaves=cfg.leaves - n_shell, seed=rng))
+    parts = [f for f in parts if len(f)]
+    if not parts:
+        return Foliage.empty()
+    foliage = Foliage(*(np.concatenate([getattr(f, k) for f in parts]) for k in
+                        ("positions", "normals", "up", "size", "color", "node")))
+    if leaf.any():
+        k = cKDTree(carved.points[leaf]).query(foliage.positions)[1]
+        col = crown_rgb[k] / 255.0 * rng.normal(1.0, 0.06, (len(foliage), 1))
+        foliage = foliage.with_colors(np.clip(col, 0, 1))
+    return foliage
+
+
 def _tree_extent(carved) -> tuple[np.ndarray, float]:
     """The trunk's foot (lowest cells' centre, on the ground) and the tree's height above it."""
     y = carved.points[:, 1]
@@ -308,6 +398,49 @@ def _tree_extent(carved) -> tuple[np.ndarray, float]:
     if not height > 0:
         raise NoTreeFoundError("no tree found: the carved volume lies under the ground")
     return foot, height
+
+
+def _leaf_gain(mesh, sfm, images, labels, views: int = 4, width: int = 256):
+    """Per-channel factor (3,) that brings the model's rendered leaves to the photos' leaf colours.
+
+    Over a few registered views rendered small: the median photo colour over the pixels
+    where the photo shows foliage and the model shows leaves, over the median rendered
+    colour there; clipped to [0.5, 4]. None when they share too few pixels.
+    """
+    from PIL import Image
+
+    from treeform.render import Renderer
+
+    names = [p.name for p in mesh.parts]
+    if "leaves" not in names:
+        return None
+    leaf_part = names.index("leaves")
+    n = sfm.n_cameras
+    photo_px, model_px = [], []
+    renderer = None
+    try:
+        for k in sorted({(i * n) // views for i in range(views)}):
+            h, w = labels[k].shape
+            scale = width / sfm.sizes[k, 0]
+            cam = sfm.render_camera(k, near=0.1, far=1000.0, scale=scale)
+            if renderer is None:
+                renderer = Renderer(cam, samples=1)
+            renderer.camera = cam
+            res = renderer.render(mesh)
+            rh, rw = res.mask.shape
+            lab = np.asarray(Image.fromarray(labels[k]).resize((rw, rh), Image.NEAREST))
+            img = np.asarray(Image.fromarray(images[k]).resize((rw, rh), Image.BILINEAR))
+            both = (res.part == leaf_part) & (lab == 1)
+            photo_px.append(img[both])
+            model_px.append(res.color[..., :3][both])
+    finally:
+        if renderer is not None:
+            renderer.release()
+    photo_px, model_px = np.concatenate(photo_px), np.concatenate(model_px)
+    if len(photo_px) < 200:
+        return None
+    gain = np.median(photo_px, axis=0) / np.maximum(np.median(model_px, axis=0), 1.0)
+    return np.clip(gain, 0.5, 4.0)
 
 
 def _preview(mesh, sfm, images, labels):
