@@ -47,6 +47,8 @@ def _dense(positions, parent, radius, min_radius, step):
 
 
 PEERS = Path(__file__).resolve().parent / "peers"
+PEER_POINTS = 50_000
+"""At most this many branch points go to pc-skeletor (a seeded random subset)."""
 
 
 def _pc_skeletor(points: np.ndarray, work: Path):
@@ -59,6 +61,8 @@ def _pc_skeletor(points: np.ndarray, work: Path):
         if r.returncode != 0 or not py.is_file():
             print(f"peer skipped: {(r.stderr or r.stdout).strip().splitlines()[-1:]}", file=sys.stderr)
             return None
+    if len(points) > PEER_POINTS:  # LBC's Laplacian grows past 16 GB of memory on ~600k points
+        points = points[np.random.default_rng(0).choice(len(points), PEER_POINTS, replace=False)]
     np.save(work / "branch_points.npy", points)
     r = subprocess.run([str(py), str(PEERS / "pc_skeletor_run.py"), str(work / "branch_points.npy"),
                         str(work / "pcs.json")], capture_output=True, text=True, timeout=1800, check=False)

@@ -20,6 +20,26 @@ def isolated_photos() -> list[Path]:
 
 
 @pytest.fixture
+def khronos_report():
+    """``report(path)``: the Khronos glTF validator's report of a GLB (tools/gltf_validate.mjs); skips
+    without node or the validator."""
+    return _khronos_report
+
+
+def _khronos_report(path) -> dict:
+    import json
+    import shutil
+    import subprocess
+
+    if shutil.which("node") is None or not (ROOT / "tools" / "node_modules" / "gltf-validator").is_dir():
+        pytest.skip("node or tools/node_modules/gltf-validator missing (make validator)")
+    proc = subprocess.run(["node", str(ROOT / "tools" / "gltf_validate.mjs"), str(path)], capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert proc.returncode in (0, 1), proc.stderr
+    return json.loads(proc.stdout)
+
+
+@pytest.fixture
 def browser():
     """Headless Chromium (WebGL by SwiftShader) through playwright; skips where either is missing."""
     import shutil

@@ -234,3 +234,32 @@ def test_validator_script_fails_on_invalid_file(glb, tmp_path):
     report = json.loads(proc.stdout)
     assert report["numErrors"] >= 1
     assert "ACCESSOR_MIN_MISMATCH" in {m["code"] for m in report["messages"]}
+
+
+def test_normal_mapped_parts_carry_unit_tangents_along_u(tmp_path):
+    """A part with a normal texture gets TANGENT: unit, in the surface, along increasing u, w = +-1
+    for the UV handedness; a part without one gets none."""
+    from treeform.structures.mesh import MeshPart
+
+    pos = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    nrm = np.tile(np.float32([0, 0, 1]), (4, 1))
+    idx = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    bump = np.full((4, 4, 4), 128, np.uint8)
+    parts = []
+    for flip in (False, True):
+        uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)  # glTF: v = 0 at the top
+        if flip:
+            uv[:, 0] = 1 - uv[:, 0]  # u runs along -x: a mirrored mapping
+        parts.append(MeshPart(pos, nrm, uv, np.ones((4, 4), np.float32), idx,
+                              Material(name=f"bark{int(flip)}", normal_texture=bump), f"p{int(flip)}"))
+    parts.append(MeshPart(pos, nrm, parts[0].uvs, np.ones((4, 4), np.float32), idx, Material(name="plain"), "q"))
+    path = write_glb(Mesh(parts), tmp_path / "t.glb")
+    gltf, bin_chunk = read_glb(path)
+    prims = gltf["meshes"][0]["primitives"]
+    t0 = accessor_array(gltf, bin_chunk, prims[0]["attributes"]["TANGENT"])
+    t1 = accessor_array(gltf, bin_chunk, prims[1]["attributes"]["TANGENT"])
+    assert "TANGENT" not in prims[2]["attributes"]
+    np.testing.assert_allclose(t0[:, :3], np.tile([1, 0, 0], (4, 1)), atol=1e-6)
+    np.testing.assert_allclose(t1[:, :3], np.tile([-1, 0, 0], (4, 1)), atol=1e-6)
+    # bitangent = w * (n x t) points along increasing v: down the quad (v = 0 at the top)
+    assert (t0[:, 3] == -1).all() and (t1[:, 3] == 1).all()

@@ -48,10 +48,26 @@ def scrambled():
     return truth, truth.transformed(s, R, t), (s, R, t)
 
 
-def test_up_vector_is_the_mean_camera_up(scrambled):
+def test_up_vector_is_orthogonal_to_the_level_camera_x_axes(scrambled):
     truth, model, (s, R, t) = scrambled
-    np.testing.assert_allclose(up_vector(truth), [0, 1, 0], atol=1e-12)  # a full ring: pitch cancels
+    np.testing.assert_allclose(up_vector(truth), [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(up_vector(model), R @ [0, 1, 0], atol=1e-12)
+
+
+def test_up_vector_on_an_arc_is_not_tilted_toward_the_tree():
+    """Cameras on a third of a ring, looking up at a tall tree: the mean camera up leans toward the
+    tree by degrees; the level x axes give the true up."""
+    full = _scene(np.random.default_rng(0), n_cams=12, pitch_target=4.0)
+    arc = SfmResult(full.names[:4], full.K[:4], full.cam_to_world[:4], full.sizes[:4], full.points, full.colors,
+                    full.errors, full.tracks)
+    mean_up = -arc.cam_to_world[:, :3, 1].mean(0)
+    mean_up /= np.linalg.norm(mean_up)
+    assert np.degrees(np.arccos(mean_up[1])) > 5.0  # the bias the x axes avoid
+    np.testing.assert_allclose(up_vector(arc), [0, 1, 0], atol=1e-9)
+    # one camera, or cameras all facing one way: the mean camera up
+    one = SfmResult(full.names[:1], full.K[:1], full.cam_to_world[:1], full.sizes[:1], full.points, full.colors,
+                    full.errors, full.tracks)
+    np.testing.assert_allclose(up_vector(one), -one.cam_to_world[0, :3, 1], atol=1e-12)
 
 
 def test_ground_plane_finds_the_ground_under_the_boxes(scrambled):

@@ -15,7 +15,7 @@ def multiview(
     photos: Path = typer.Argument(..., metavar="PHOTO_DIR", help="Folder of 10-60 photos taken around one tree."),
     out: Path = typer.Option(Path("out/multiview"), "--out", "-o", help="Output directory."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    leaves: int = typer.Option(6000, "--leaves", help="Number of leaf clusters."),
+    leaves: int = typer.Option(15000, "--leaves", help="Number of leaf clusters (most on the crown surface the photos see)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),

@@ -96,6 +96,39 @@ def _unit_normals(normals: np.ndarray) -> np.ndarray:
     return (n / length[:, None]).astype(np.float32)
 
 
+def _vertex_tangents(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """(V, 4) float32 glTF tangents: the direction of increasing u, orthogonal to the unit normal,
+    and w = +-1 the handedness (bitangent = w * normal x tangent), from the triangles' UV gradients
+    summed at each vertex. Vertices without a usable gradient get any unit vector orthogonal to
+    their normal (glTF requires unit tangents).
+    """
+    p = positions.astype(np.float64)
+    uv = uvs.astype(np.float64)
+    f = indices.reshape(-1, 3).astype(np.int64)
+    e1, e2 = p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    r = np.where(np.abs(det) > 1e-20, 1.0 / np.where(det == 0, 1.0, det), 0.0)[:, None]
+    t_face = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r
+    b_face = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r
+    T = np.zeros_like(p)
+    B = np.zeros_like(p)
+    for k in range(3):
+        np.add.at(T, f[:, k], t_face)
+        np.add.at(B, f[:, k], b_face)
+    n = normals.astype(np.float64)
+    T -= n * np.sum(n * T, axis=1, keepdims=True)
+    length = np.linalg.norm(T, axis=1)
+    bad = ~(length > 1e-12)
+    if bad.any():  # any direction in the tangent plane
+        a = np.where(np.abs(n[bad, 0:1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        T[bad] = a - n[bad] * np.sum(n[bad] * a, axis=1, keepdims=True)
+        length[bad] = np.linalg.norm(T[bad], axis=1)
+    T /= length[:, None]
+    w = np.where(np.sum(np.cross(n, T) * B, axis=1) < 0.0, -1.0, 1.0)
+    return np.column_stack([T, w]).astype(np.float32)
+
+
 def _encode_png(texture: np.ndarray) -> bytes:
     """PNG bytes of an (H, W, 4) uint8 RGBA texture (:func:`treeform.io.images.texture_png`)."""
     from treeform.io.images import texture_png
@@ -120,7 +153,8 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
     no vertices or no triangles are skipped), one node and one scene. Each primitive has
     ``POSITION`` (float VEC3 with min/max), ``NORMAL`` (normalised; zero-length normals
     become +Y), ``TEXCOORD_0`` and, only when some vertex colour differs from 1,
-    ``COLOR_0`` (float VEC4, clamped to [0, 1]); indices are ``UNSIGNED_SHORT`` when every
+    ``COLOR_0`` (float VEC4, clamped to [0, 1]), and ``TANGENT`` (float VEC4) when its
+    material has a normal texture; indices are ``UNSIGNED_SHORT`` when every
     index fits below 65535 (the primitive-restart value is never used), else
     ``UNSIGNED_INT``. Materials are PBR metallic-roughness with ``baseColorFactor``, an
     embedded PNG ``baseColorTexture`` when :attr:`Material.texture` is set (sampler
@@ -203,6 +237,12 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
             "NORMAL": b.add_accessor(_unit_normals(p.normals), _FLOAT, "VEC3", target=_ARRAY_BUFFER),
             "TEXCOORD_0": b.add_accessor(p.uvs.astype(np.float32), _FLOAT, "VEC2", target=_ARRAY_BUFFER),
         }
+        if p.material.normal_texture is not None and len(p.indices):
+            # with a normal map, the tangent space travels with the mesh (a client's generated one
+            # may differ: the Khronos validator warns)
+            attributes["TANGENT"] = b.add_accessor(
+                _vertex_tangents(p.positions, _unit_normals(p.normals), p.uvs, p.indices), _FLOAT, "VEC4",
+                target=_ARRAY_BUFFER)
         if np.any(p.colors != 1.0):
             colors = np.clip(p.colors, 0.0, 1.0).astype(np.float32)
             attributes["COLOR_0"] = b.add_accessor(colors, _FLOAT, "VEC4", target=_ARRAY_BUFFER)

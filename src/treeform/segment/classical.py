@@ -213,6 +213,11 @@ def _sky_mask(F: dict) -> np.ndarray:
     return sky
 
 
+def sky_mask(image: np.ndarray) -> np.ndarray:
+    """The sky of an (H, W, 3) uint8 RGB photo: (H, W) bool (blue or bright, smooth; see the module notes)."""
+    return _sky_mask(_features(_check_image(image)))
+
+
 def wood_colour_mask(image: np.ndarray) -> np.ndarray:
     """Pixels coloured like bark: brown, grey or reddish, neither green, yellow nor blue.
 

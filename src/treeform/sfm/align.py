@@ -65,7 +65,14 @@ def _unit(v, name: str = "up") -> np.ndarray:
 
 
 def up_vector(result: SfmResult) -> np.ndarray:
-    """The mean camera up direction: the mean of the cameras' -y axes (OpenCV), normalised.
+    """The up direction of the cameras: the direction most orthogonal to their x axes.
+
+    A phone held upright keeps its x axis (OpenCV: right) level, however far it tilts up to
+    a tall tree; so up is the least singular direction of the stacked x axes, signed like
+    the mean of the cameras' -y axes. The mean -y axis itself is a biased up wherever the
+    cameras do not surround the tree (on an arc their upward tilts, toward the tree, do not
+    cancel: 150 degrees of a ring tilted the frame by 10 degrees); it is the answer only when
+    the x axes do not span a plane (every camera facing one way).
 
     Returns
     -------
@@ -79,11 +86,18 @@ def up_vector(result: SfmResult) -> np.ndarray:
     """
     if result.n_cameras == 0:
         raise SfmError("no registered cameras to find the up direction from")
-    up = -result.cam_to_world[:, :3, 1].mean(axis=0)
-    n = np.linalg.norm(up)
+    mean_up = -result.cam_to_world[:, :3, 1].mean(axis=0)
+    n = np.linalg.norm(mean_up)
     if n < 1e-6:
         raise SfmError("the cameras' up directions cancel out; the up direction is undetermined")
-    return up / n
+    mean_up /= n
+    x = result.cam_to_world[:, :3, 0]
+    _, sv, vt = np.linalg.svd(x, full_matrices=False)
+    if result.n_cameras >= 2 and sv[1] > 0.2 * sv[0]:
+        up = vt[2] if vt[2] @ mean_up >= 0 else -vt[2]
+        if up @ mean_up > np.cos(np.radians(45.0)):  # upright photos: anything else is not their up
+            return up
+    return mean_up
 
 
 def _scene_scale(result: SfmResult) -> float:

@@ -130,3 +130,46 @@ def test_branch_skeleton_of_a_fork(gap):
 def test_branch_skeleton_needs_points():
     with pytest.raises(NoTreeFoundError):
         branch_skeleton(np.zeros((1, 3)), np.ones(1), link=0.1, gap=0.2, bin_width=0.1)
+
+
+def test_main_component_keeps_the_tree_not_its_neighbour():
+    """Two blocks of cells: the one on the cameras' axis is the tree, the other (a neighbour at the
+    ring's edge) goes; cells touching at edges and corners are one piece, octree sizes mixed."""
+    from treeform.methods.multiview.carve import CarvedTree, main_component
+
+    tree = np.array([[x, y, z] for x in (-0.5, 0.5) for y in np.arange(0.5, 6) for z in (-0.5, 0.5)])
+    twig = np.array([[1.25, 5.75, 0.75]])  # a half-size cell touching the tree at a corner
+    far = np.array([[x, y, 0.5] for x in (6.5, 7.5) for y in np.arange(0.5, 9)])  # bigger, but off the axis
+    pts = np.concatenate([tree, twig, far])
+    size = np.concatenate([np.ones(len(tree)), [0.5], np.ones(len(far))])
+    n = len(pts)
+    c = CarvedTree(pts, size, np.ones(n), np.zeros(n), np.ones(n, int), np.zeros((n, 3), np.uint8), np.zeros(n),
+                   np.ones(n))
+    keep = main_component(c, [0, 0, 0], 2.0)
+    assert keep[: len(tree) + 1].all() and not keep[len(tree) + 1:].any()
+    assert not main_component(c, [30, 0, 30], 2.0).any()  # nothing on the axis: nothing kept
+    sub = c.subset(keep).transformed(2.0, [0, 1, 0])
+    assert len(sub) == len(tree) + 1
+    np.testing.assert_allclose(sub.points, 2.0 * pts[keep] + [0, 1, 0])
+    np.testing.assert_allclose(sub.size, 2.0 * size[keep])
+
+
+def test_surface_voxel_refines_the_crown_surface(scene):
+    """With surface_voxel the wide crown's boundary reaches that cell size (the leaves follow its
+    outline); without, it stays coarse."""
+    K, c2w, labels, _, _ = scene
+    box = ([-4, -0.2, -4], [4, 8, 4])
+    coarse = carve_tree(K, c2w, labels, box=box, voxel=0.05, tolerance=0.1)
+    fine = carve_tree(K, c2w, labels, box=box, voxel=0.05, tolerance=0.1, surface_voxel=0.1)
+
+    def crown(c):  # the crown's surface
+        return (c.points[:, 1] > 3.5) & (c.edge < 0.15)
+
+    assert crown(fine).sum() > 50 and np.median(fine.size[crown(fine)]) <= 0.1 + 1e-9
+    assert np.median(coarse.size[crown(coarse)]) > 0.1
+    assert (fine.support >= 0.9 - 1e-9).all() and (fine.support <= 1).all()
+    # edge: about 0 on the surface, about the radius at the crown's centre
+    centre = np.linalg.norm(fine.points - [0, 4.5, 0], axis=1) < 0.3
+    assert np.median(fine.edge[centre]) > 1.2
+    with pytest.raises(InputError, match="surface_voxel"):
+        carve_tree(K, c2w, labels, box=box, voxel=0.05, surface_voxel=0.01)

@@ -40,6 +40,12 @@ def test_outputs_and_cameras(run):
     assert set(np.unique(labels)) <= {0, 1, 2} and (labels == 1).any() and (labels == 2).any()
 
 
+def test_the_glb_passes_the_khronos_validator(run, khronos_report):
+    report = khronos_report(run[2] / "tree.glb")
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+    assert report["info"]["totalTriangleCount"] == run[1].mesh.n_triangles
+
+
 def test_model_matches_the_views(run):
     cap, res, out = run
     m = json.loads((out / "metrics.json").read_text())

@@ -70,6 +70,11 @@ class CarvedTree:
     def __len__(self) -> int:
         return len(self.points)
 
+    def transformed(self, scale: float, offset) -> CarvedTree:
+        """The cells under ``x -> scale * x + offset`` (lengths scaled, colours and votes kept)."""
+        return CarvedTree(scale * self.points + np.asarray(offset, np.float64).reshape(3), scale * self.size,
+                          scale * self.thickness, self.wood, self.seen, self.colors, scale * self.edge, self.support)
+
     def subset(self, keep) -> CarvedTree:
         """The cells selected by a boolean mask or an index array."""
         return CarvedTree(self.points[keep], self.size[keep], self.thickness[keep], self.wood[keep],

@@ -36,6 +36,8 @@ __all__ = ["STAGES", "MultiviewResult", "reconstruct_multiview"]
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
 
+THIN_WOOD = True
+"""Add thin dark ridges near the tree to each view's segmentation as wood (see ``_segment_views``)."""
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
 SHELL_SHARE = 0.9
@@ -93,6 +95,8 @@ def _segment_views(views, sfm, cfg, masks=None):
     from PIL import Image
 
     from treeform.segment import segment
+    from treeform.segment.classical import sky_mask
+    from treeform.segment.thin import thin_dark_lines
 
     by_name = {v.name: v for v in views}
     labels, images, scales = [], [], []
@@ -104,23 +108,28 @@ def _segment_views(views, sfm, cfg, masks=None):
         if masks is not None:
             labels.append(_user_labels(masks, name, (small.shape[1], small.shape[0])))
         else:
-            labels.append(np.asarray(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8))
+            lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
+            if THIN_WOOD:
+                # the segmenter's stride loses the twigs against the sky: dark ridges against the
+                # sky near the tree become wood; the carving keeps only those the views agree on
+                # in 3D (a power line or a roof edge behind the tree agrees with nothing)
+                lab[thin_dark_lines(small, lab > 0, against=sky_mask(small)) & (lab == 0)] = 2
+            labels.append(lab)
         images.append(small)
         scales.append(small.shape[1] / sfm.sizes[k, 0])
     return labels, images, np.asarray(scales)
 
 
 def _hull_box(sfm) -> tuple[np.ndarray, np.ndarray]:
-    """The region the tree can occupy: inside the camera ring, from just under the ground up."""
+    """The region the tree can occupy: around where the cameras look, within their distance, from under the ground up."""
     c = sfm.centers
-    ring = float(np.median(np.hypot(c[:, 0], c[:, 2])))
+    axis, ring = _ring(sfm)
     if not ring > 0:
         raise InputError("the cameras do not surround the tree (a camera stands on its axis)")
-    r = ring
     # the ground plane of a sparse model may be off: carve from well under the cameras
     low = float(c[:, 1].min()) - ring
     top = float(c[:, 1].max()) + 3.0 * ring
-    return np.array([-r, low, -r]), np.array([r, top, r])
+    return np.array([axis[0] - ring, low, axis[2] - ring]), np.array([axis[0] + ring, top, axis[2] + ring])
 
 
 def _ring(sfm) -> tuple[np.ndarray, float]:
@@ -262,6 +271,19 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             carved = carved.subset(d <= 0.5 * coarse_size[k] + voxel)
         if len(carved) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
+        # the coarse cells placed the foot within half a coarse cell; the fine hull's foot is sharper.
+        # Under the SfM ground, it wins (a sparse ground, fit to far hedges and facades, can sit
+        # high); above it, the mattes missed the trunk's foot and the trunk goes down to the ground
+        ground = -s * foot[1]
+        fine_foot = min(float(_tree_extent(carved)[0][1]), ground)
+        if abs(fine_foot) > 0.5 * voxel:
+            top = height - fine_foot
+            s2 = cfg.height / top if cfg.height is not None else \
+                cfg.eye_height / (float(np.median(sfm.centers[:, 1])) - fine_foot)
+            shift = np.array([0.0, -s2 * fine_foot, 0.0])
+            sfm = sfm.transformed(s2, np.eye(3), shift)
+            carved = carved.transformed(s2, shift)
+            height, voxel = top * s2, voxel * s2
     with timer.stage("branches"):
         # branch points: where the views' mattes say wood, or where the hull is a thin tube (a bare
         # branch against the sky). Thinness alone is no test in a leafy crown: a porous crown's hull is
