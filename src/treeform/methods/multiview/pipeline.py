@@ -299,6 +299,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             ys = np.linspace(0.0, max(bottom, 0.1 * height), 6)
             visible = TreeSkeleton(np.column_stack([np.zeros(6), ys, np.zeros(6)]), np.arange(-1, 5),
                                    np.full(6, 0.02 * height))
+        visible = _down_to_ground(visible)
         # the mattes' blur widens thin wood (and a segmenter may take the trunk's shadow or a bush
         # behind it into the trunk): a trunk radius no more than 1 % of the height (open-grown
         # trees measure 0.4-1 %; the 24-view oak capture 0.6 %)
@@ -408,6 +409,21 @@ def _leaves(carved, branch, skeleton, height, cfg, rng):
         col = crown_rgb[k] / 255.0 * rng.normal(1.0, 0.06, (len(foliage), 1))
         foliage = foliage.with_colors(np.clip(col, 0, 1))
     return foliage
+
+
+def _down_to_ground(skeleton):
+    """The skeleton with its root on the ground (y = 0): where the mattes lost the trunk's foot (a
+    hedge or a bench in front of it, a segmenter that misses it), the graph's root hangs above the
+    ground, and the trunk goes straight down from it."""
+    from treeform.structures import TreeSkeleton
+
+    root = skeleton.positions[0]
+    if root[1] <= 1e-6:
+        return skeleton
+    parent = np.concatenate([[-1], np.where(skeleton.parent < 0, 0, skeleton.parent + 1)])
+    return TreeSkeleton(np.vstack([[root[0], 0.0, root[2]], skeleton.positions]), parent,
+                        np.concatenate([skeleton.radius[:1], skeleton.radius]),
+                        np.concatenate([skeleton.order[:1], skeleton.order]))
 
 
 def _tree_extent(carved) -> tuple[np.ndarray, float]:
