@@ -6,16 +6,20 @@ Stages, each one call into a domain folder or a sibling module:
    pycolmap on the CPU with the EXIF focal prior; the largest model.
 2. **frame** (§3): up = the cameras' mean up, the ground plane from the lowest points,
    metres from ``height`` or from the cameras' eye height, origin at the trunk's foot.
-3. **matting** (§4.1): the project's segmenter on every registered view.
+3. **matting** (§4.1): the project's segmenter on every registered view, plus thin dark
+   ridges against the sky near the tree as wood (:func:`treeform.segment.thin.thin_dark_lines`:
+   the twigs a segmenter's stride loses).
 4. **points and partition** (§4.1–4.2): :func:`carve.carve_tree` — the tree's points as
-   the visual hull of the mattes, each with the silhouette half-width seen from the views
-   and wood votes; thin or wood-voted points are branch, the rest leaf.
+   the visual hull of the mattes (the piece the cameras look at, :func:`carve.main_component`),
+   each with the silhouette half-width seen from the views and wood votes; thin or wood-voted
+   points are branch, the rest leaf.
 5. **visible branch graph** (§4.3): :func:`branch_graph.branch_skeleton`.
 6. **hidden branches** (§5): constrained growth — the project's space colonization from
    the visible skeleton toward the leaf points (seed 002 grows its replication blocks
    "constrained by the leaf points"); radii by the pipe model, the trunk at its measured width.
-7. **leaves** (§6): leaf clusters on the twigs, each coloured from the photos at the
-   nearest leaf point.
+7. **leaves** (§6): most leaf clusters on the crown's surface as the views' silhouettes carve
+   it, the rest on the grown twigs; each coloured from the photos at the nearest leaf point,
+   then calibrated by rendering so the model's leaves have the photos' colours.
 8. mesh, previews from three input cameras, metrics, export (tree.glb ...,
    cameras.json, points.ply).
 """
