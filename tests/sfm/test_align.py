@@ -64,6 +64,12 @@ def test_up_vector_on_an_arc_is_not_tilted_toward_the_tree():
     mean_up /= np.linalg.norm(mean_up)
     assert np.degrees(np.arccos(mean_up[1])) > 5.0  # the bias the x axes avoid
     np.testing.assert_allclose(up_vector(arc), [0, 1, 0], atol=1e-9)
+    # a narrow fan (two cameras 30 degrees apart): a little roll would tilt the x axes' normal far,
+    # so the mean camera up
+    fan = SfmResult(full.names[:2], full.K[:2], full.cam_to_world[:2], full.sizes[:2], full.points, full.colors,
+                    full.errors, full.tracks)
+    mean_fan = -fan.cam_to_world[:, :3, 1].mean(0)
+    np.testing.assert_allclose(up_vector(fan), mean_fan / np.linalg.norm(mean_fan), atol=1e-12)
     # one camera, or cameras all facing one way: the mean camera up
     one = SfmResult(full.names[:1], full.K[:1], full.cam_to_world[:1], full.sizes[:1], full.points, full.colors,
                     full.errors, full.tracks)

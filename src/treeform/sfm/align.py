@@ -71,8 +71,11 @@ def up_vector(result: SfmResult) -> np.ndarray:
     a tall tree; so up is the least singular direction of the stacked x axes, signed like
     the mean of the cameras' -y axes. The mean -y axis itself is a biased up wherever the
     cameras do not surround the tree (on an arc their upward tilts, toward the tree, do not
-    cancel: 150 degrees of a ring tilted the frame by 10 degrees); it is the answer only when
-    the x axes do not span a plane (every camera facing one way).
+    cancel: 150 degrees of a ring tilted the frame by 10 degrees); it is the answer when the
+    x axes span too narrow a fan (their second singular value under half the first: cameras
+    on less than about 80 degrees of a ring), where a few degrees of roll tilt the x axes'
+    normal more than the pitch tilts the mean up (3 cameras on 40 degrees: 18 degrees off,
+    every SfM point above the cameras).
 
     Returns
     -------
@@ -93,7 +96,7 @@ def up_vector(result: SfmResult) -> np.ndarray:
     mean_up /= n
     x = result.cam_to_world[:, :3, 0]
     _, sv, vt = np.linalg.svd(x, full_matrices=False)
-    if result.n_cameras >= 2 and sv[1] > 0.2 * sv[0]:
+    if result.n_cameras >= 2 and sv[1] > 0.5 * sv[0]:
         up = vt[2] if vt[2] @ mean_up >= 0 else -vt[2]
         if up @ mean_up > np.cos(np.radians(45.0)):  # upright photos: anything else is not their up
             return up
