@@ -36,14 +36,9 @@ import numpy as np
 
 
 def _dense(positions, parent, radius, min_radius, step):
-    out = []
-    for k in range(1, len(parent)):
-        if radius[k] < min_radius:
-            continue
-        a, b = positions[parent[k]], positions[k]
-        n = max(1, int(np.linalg.norm(b - a) / step))
-        out.append(a + (b - a) * np.linspace(0, 1, n + 1)[:, None])
-    return np.concatenate(out) if out else np.zeros((0, 3))
+    """Points every ``step`` along the skeleton's links to nodes of radius >= ``min_radius``."""
+    k = np.flatnonzero((np.arange(len(parent)) > 0) & (np.asarray(radius) >= min_radius))
+    return _dense_edges(positions, np.column_stack([np.asarray(parent)[k], k]), step)
 
 
 PEERS = Path(__file__).resolve().parent / "peers"
@@ -75,11 +70,12 @@ def _pc_skeletor(points: np.ndarray, work: Path):
 
 
 def _dense_edges(nodes, edges, step):
-    out = [nodes]
+    """Points every ``step`` along a graph's edges (both ends included)."""
+    out = []
     for a, b in edges:
         n = max(1, int(np.linalg.norm(nodes[b] - nodes[a]) / step))
         out.append(nodes[a] + (nodes[b] - nodes[a]) * np.linspace(0, 1, n + 1)[:, None])
-    return np.concatenate(out)
+    return np.concatenate(out) if out else np.zeros((0, 3))
 
 
 def _mid_camera(Ta, Tb):

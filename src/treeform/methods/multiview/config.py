@@ -4,12 +4,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from treeform._shared.checks import (
-    check_choice,
-    check_height,
-    check_int,
-    check_positive,
-)
+from treeform._shared.checks import check_choice, check_height, check_int, check_positive
+from treeform._shared.errors import InputError
 
 __all__ = ["MultiviewConfig"]
 
@@ -30,6 +26,9 @@ class MultiviewConfig:
     """Long side of the photos for segmentation and carving (pixels)."""
     segmenter: str = "learned"
     """Tree matting per view: 'learned' (the network) or 'classical' (the colour rules)."""
+    thin_wood: bool = True
+    """Add thin dark ridges against the sky near the tree to the segmenter's mattes as wood (the twigs
+    its stride loses; the carving keeps those the views agree on). Not applied to ``--masks``."""
     cells: int = 400
     """Finest carving cell (thin branches) = tree height / cells."""
     surface_cells: int = 200
@@ -53,11 +52,11 @@ class MultiviewConfig:
         check_int(self.max_size, "max_size", 128, 8192)
         check_int(self.mask_size, "mask_size", 64, 4096)
         check_choice(self.segmenter, "segmenter", SEGMENTERS)
+        if not isinstance(self.thin_wood, bool):
+            raise InputError(f"thin_wood: expected True or False, got {self.thin_wood!r}")
         check_int(self.cells, "cells", 50, 2000)
         check_int(self.surface_cells, "surface_cells", 10, 2000)
         if not 0.0 <= float(self.tolerance) < 0.5:
-            from treeform._shared.errors import InputError
-
             raise InputError(f"tolerance: expected a share in [0, 0.5), got {self.tolerance!r}")
         check_int(self.leaves, "leaves", 0, 1_000_000)
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))

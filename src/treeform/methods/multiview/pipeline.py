@@ -40,8 +40,6 @@ __all__ = ["STAGES", "MultiviewResult", "reconstruct_multiview"]
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
 
-THIN_WOOD = True
-"""Add thin dark ridges near the tree to each view's segmentation as wood (see ``_segment_views``)."""
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
 SHELL_SHARE = 0.9
@@ -113,7 +111,7 @@ def _segment_views(views, sfm, cfg, masks=None):
             labels.append(_user_labels(masks, name, (small.shape[1], small.shape[0])))
         else:
             lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
-            if THIN_WOOD:
+            if cfg.thin_wood:
                 # the segmenter's stride loses the twigs against the sky: dark ridges against the
                 # sky near the tree become wood; the carving keeps only those the views agree on
                 # in 3D (a power line or a roof edge behind the tree agrees with nothing)
@@ -124,10 +122,10 @@ def _segment_views(views, sfm, cfg, masks=None):
     return labels, images, np.asarray(scales)
 
 
-def _hull_box(sfm) -> tuple[np.ndarray, np.ndarray]:
-    """The region the tree can occupy: around where the cameras look, within their distance, from under the ground up."""
+def _hull_box(sfm, axis, ring) -> tuple[np.ndarray, np.ndarray]:
+    """The region the tree can occupy: around where the cameras look (``axis``), within their distance
+    (``ring``, see :func:`_ring`), from well under the ground up."""
     c = sfm.centers
-    axis, ring = _ring(sfm)
     if not ring > 0:
         raise InputError("the cameras do not surround the tree (a camera stands on its axis)")
     # the ground plane of a sparse model may be off: carve from well under the cameras
@@ -231,12 +229,12 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         if np.count_nonzero(seen_tree > 0.002) < max(3, len(labels) // 2):
             raise NoTreeFoundError("no tree found in the photos (the segmentation finds none in most views)")
     with timer.stage("carve"):
-        lo, hi = _hull_box(sfm)
+        axis, ring = _ring(sfm)
+        lo, hi = _hull_box(sfm, axis, ring)
         coarse = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
                             tolerance=cfg.tolerance)
         # the tree is the piece of the hull the cameras look at (a neighbouring tree or a hedge at the
         # ring's edge, seen only by the cameras across the ring, can survive the carving too)
-        axis, ring = _ring(sfm)
         coarse = coarse.subset(main_component(coarse, axis, 0.35 * ring))
         if len(coarse) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
