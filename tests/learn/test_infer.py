@@ -74,6 +74,26 @@ def test_main_tree_drops_a_separate_neighbour():
     assert keep[50, 50] and keep[16, 50] and not keep[40, 3]
 
 
+def test_main_tree_links_a_crown_broken_by_sky_gaps():
+    # a sharp crown seen through sky gaps: many pieces a few pixels apart, none holding most of it,
+    # beside a smaller sharp shrub 40 px away; linked, the whole crown is the tree and the shrub is not
+    rng = np.random.default_rng(3)
+    m = np.zeros((200, 200), bool)
+    for y0 in range(20, 140, 24):
+        for x0 in range(60, 160, 24):
+            h, w = rng.integers(14, 21, 2)
+            m[y0:y0 + h, x0:x0 + w] = True       # gaps of 4-10 px between the pieces
+    m[140:190, 105:112] = True                   # the trunk, below the pieces
+    m[150:190, 5:25] = True                      # a shrub, far to the left
+    crown = m.copy(); crown[:, :40] = False
+    alone = main_tree(m, min_fraction=0.001)
+    linked = main_tree(m, min_fraction=0.001, link=0.05)
+    assert alone.sum() < 0.5 * crown.sum()                     # one piece and the few whose box it touches
+    assert np.array_equal(linked, crown)                       # every piece and the trunk, not the shrub
+    assert not (linked & ~m).any()                             # the mask's own pixels: the gaps stay gaps
+    assert np.array_equal(main_tree(m, link=0.0), main_tree(m))
+
+
 def test_main_tree_prefers_the_sharp_tree_over_a_larger_blurred_one():
     import cv2
 

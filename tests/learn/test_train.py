@@ -42,8 +42,13 @@ def test_seg_training_resumes_to_the_same_weights(tmp_path, tiny_data):
     a = train_seg(tiny_data, tmp_path / "a", test_data=tiny_data, **opts)
     with pytest.raises(KeyboardInterrupt):
         train_seg(tiny_data, tmp_path / "b", progress=_fail_at(3), **opts)  # killed after the step-2 checkpoint
-    # resumed with the scenes composed by a worker process: same scenes, so the same weights
-    b = train_seg(tiny_data, tmp_path / "b", test_data=tiny_data, workers=1, **opts)
+    # a resume may change only where and how the run goes (checkpoint spacing, device, workers) ...
+    from treeform._shared.errors import InputError
+
+    with pytest.raises(InputError, match="other settings"):
+        train_seg(tiny_data, tmp_path / "b", **{**opts, "lr": 1e-2})
+    # ... resumed with the scenes composed by a worker process: same scenes, so the same weights
+    b = train_seg(tiny_data, tmp_path / "b", test_data=tiny_data, workers=1, **{**opts, "checkpoint_every": 1})
     wa = torch.load(tmp_path / "a" / "checkpoint.pt", weights_only=False)["model"]
     wb = torch.load(tmp_path / "b" / "checkpoint.pt", weights_only=False)["model"]
     assert all(torch.equal(wa[k], wb[k]) for k in wa)

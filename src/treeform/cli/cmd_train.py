@@ -34,7 +34,11 @@ def seg_cmd(
                                       "--photos, their main tree pseudo-labelled by the colour rules (0 = none)."),
     noise: float = typer.Option(0.03, "--noise", help="Share of scenes that are random noise, all background."),
     fine_stride: int = typer.Option(1, "--fine-stride", help="Resolution of the logits: 1 (sub-pixel head) or 4 "
-                                    "(plain DeepLab-V3+, the shipped weights)."),
+                                    "(plain DeepLab-V3+)."),
+    size: int = typer.Option(224, "--size", help="Edge of the square training scenes in pixels (the test scenes too)."),
+    width: int = typer.Option(16, "--width", help="SegNet channel base (16: about 0.3 M parameters; 24: 0.7 M)."),
+    repeats: int = typer.Option(2, "--repeats", help="Passes (with flips) over each round's composed scenes; more "
+                                "when the optimiser outruns the scene composition (a GPU)."),
 ):
     """Segmentation network (background / foliage / wood); resumes from OUT/checkpoint.pt."""
     from treeform.cli.progress import TrainProgress
@@ -43,7 +47,7 @@ def seg_cmd(
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
                 seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
                 fine_stride=fine_stride, photo_tree_fraction=photo_trees, noise_negatives=noise,
-                display=TrainProgress("seg"),
+                size=size, width=width, repeats=repeats, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),
                         ("--init", init)))
     r, c = m.get("renders"), m.get("cutouts")

@@ -116,7 +116,7 @@ def _partial_ce(logits, labels, wood_weight: float):
     return ce + 0.5 * wood_weight / 2.5 * dice
 
 
-_RUNTIME_ONLY = ("threads", "device", "workers")
+_RUNTIME_ONLY = ("threads", "device", "workers", "checkpoint_every")
 """Settings that change where and how fast a run goes, not what it learns (a resume may change them)."""
 
 

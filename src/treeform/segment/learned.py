@@ -30,6 +30,11 @@ REFINERS = ("matting", "guided", "none")
 MATTE_SIDE = 512
 """Long side, in pixels, at which the matting refinement runs (its alpha is upsampled)."""
 
+LINK = 0.02
+"""Pieces of the tree mask closer than this share of the long side are one part when the main
+tree is chosen (:func:`~treeform.learn.infer.main_tree`): a crown seen through sky gaps falls
+apart into pieces, all of them the tree."""
+
 
 def guided_filter(guide: np.ndarray, src: np.ndarray, *, radius: int = 4, eps: float = 1e-3) -> np.ndarray:
     """Edge-aware smoothing of ``src`` that follows the edges of the colour ``guide`` (He et al. 2013).
@@ -259,12 +264,12 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
             p_tree = ref if f == 1.0 else cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
     # the main tree: the largest part, weighted by sharpness (a blurred tree behind loses)
     focus = focus_map(img, seg_net.side)
-    tree = main_tree(p_tree > 0.5, focus=focus)
+    tree = main_tree(p_tree > 0.5, focus=focus, link=LINK)
     if ground:
         from treeform.segment.classical import ground_line
 
         g = ground_line(img)
-        tree = main_tree(stand_on_ground(tree, g), focus=focus)
+        tree = main_tree(stand_on_ground(tree, g), focus=focus, link=LINK)
     if tree.mean() < MIN_TREE_FRACTION:
         raise NoTreeFoundError("no tree found in the photo")
     if refine == "matting":
@@ -274,7 +279,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
         matte, a = _matte_refine(img, tree, p_tree, sky)
         if ground:
             matte = stand_on_ground(matte, g)
-        matte = main_tree(matte, focus=focus)
+        matte = main_tree(matte, focus=focus, link=LINK)
         if matte.mean() >= MIN_TREE_FRACTION:
             tree, p_tree = matte, np.asarray(a, np.float32)
     labels = np.where(tree, np.where(p[..., 2] > p[..., 1], 2, 1), 0).astype(np.uint8)
