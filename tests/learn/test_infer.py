@@ -48,6 +48,18 @@ def test_learned_segmentation_finds_the_sample_tree(celtis):
     assert np.array_equal(seg.labels, segment(celtis, method="learned").labels)
 
 
+@pytest.mark.parametrize("kind", ["street", "park", "field"])
+def test_scenes_without_a_tree_say_so(kind):
+    # the training scenes' own backgrounds, drawn with a seed training never uses: roads, buildings,
+    # cars, figures, hedges, lawns and sky, but no main tree
+    from treeform.dataset.backgrounds import procedural_background
+
+    for s in range(2):
+        img = procedural_background(384, seed=np.random.default_rng([77, s]), kind=kind)
+        with pytest.raises(NoTreeFoundError, match="no tree found"):
+            segment_tree_learned(img)
+
+
 @pytest.mark.parametrize("kind", ["noise", "wall", "sky"])
 def test_photos_without_a_tree_say_so(kind):
     rng = np.random.default_rng(0)
