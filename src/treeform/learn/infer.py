@@ -103,8 +103,7 @@ def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarra
     (52, 91)
     """
     tree = np.asarray(tree, bool)
-    H, W = tree.shape
-    r = int(round(float(link) * max(H, W)))
+    r = int(round(float(link) * max(tree.shape)))
     if r >= 1:
         import cv2
 
@@ -115,12 +114,13 @@ def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarra
         n, lab, _ = _components(tree)
     if n <= 1:
         return np.zeros_like(tree)
-    flat = lab.ravel()
-    areas = np.bincount(flat, minlength=n)[1:].astype(np.float64)
-    ys, xs = np.divmod(np.flatnonzero(flat), W)
-    ks = flat[flat > 0]
-    x0 = np.full(n, W); x1 = np.zeros(n, np.int64); y0 = np.full(n, H); y1 = np.zeros(n, np.int64)
-    np.minimum.at(x0, ks, xs); np.maximum.at(x1, ks, xs + 1); np.minimum.at(y0, ks, ys); np.maximum.at(y1, ks, ys + 1)
+    import scipy.ndimage as ndi
+
+    areas = np.bincount(lab.ravel(), minlength=n)[1:].astype(np.float64)
+    # each part's bounding box (of its own pixels): [y0, y1) x [x0, x1), index = label
+    boxes = np.array([(0, 0, 0, 0)] + [(b[0].start, b[0].stop, b[1].start, b[1].stop)
+                                       for b in ndi.find_objects(lab, max_label=n - 1)])
+    y0, y1, x0, x1 = boxes.T
     score = areas
     cand = np.flatnonzero(areas >= min_fraction * tree.size)
     if focus is not None and len(cand) > 1:
