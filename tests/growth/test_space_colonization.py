@@ -133,3 +133,45 @@ def test_perception_cone_limits_what_a_node_sees():
     cone = space_colonization(att2, np.zeros((1, 3)), influence_radius=6, kill_distance=0.25, segment_length=0.1,
                               perception_angle=80)
     assert len(cone.positions) > 100 and cone.attractors_left < 0.2 * len(att2)
+
+
+def test_compiled_nearest_node_search_matches_a_kd_tree():
+    # the grid search of space_colonization's update gives what a k-d tree query gives
+    from scipy.spatial import cKDTree
+
+    from treeform.growth._point_kernels import nearest_new_node
+
+    rng = np.random.default_rng(3)
+    att = rng.uniform(-3, 3, (4000, 3))
+    pos = np.concatenate([rng.uniform(-3, 3, (300, 3)), [[10.0, 10.0, 10.0]]])  # one node far outside
+    for radius in (0.3, 1.0, 4.0):
+        best_d = np.where(rng.random(len(att)) < 0.3, rng.uniform(0, 1, len(att)), np.inf)
+        best_n = np.full(len(att), -1, np.int64)
+        alive = np.flatnonzero(rng.random(len(att)) < 0.8)
+        cand = np.sort(rng.choice(len(pos), 120, replace=False))
+        ref_d, ref_n = best_d.copy(), best_n.copy()
+        d, j = cKDTree(pos[cand]).query(att[alive], distance_upper_bound=radius)
+        better = d < ref_d[alive]
+        ref_d[alive[better]], ref_n[alive[better]] = d[better], cand[j[better]]
+        nearest_new_node(att, alive, pos, cand, radius, best_d, best_n)
+        np.testing.assert_array_equal(best_n, ref_n)
+        np.testing.assert_array_equal(best_d, ref_d)
+
+
+def test_compiled_close_pair_drops_follow_the_closest_pairs_rule():
+    from treeform.growth._point_kernels import close_pair_drops
+
+    rng = np.random.default_rng(0)
+    partner = rng.integers(0, 50, 50)
+    order = rng.permutation(50)
+    drop = close_pair_drops(order, partner, 7)
+    ref, taken, budget = np.zeros(50, bool), np.zeros(50, bool), 7
+    for i in order:  # the rule, written out: one point of each untouched pair, closest pairs first
+        if budget == 0:
+            break
+        if taken[i] or taken[partner[i]]:
+            continue
+        ref[i] = taken[i] = taken[partner[i]] = True
+        budget -= 1
+    np.testing.assert_array_equal(drop, ref)
+    assert drop.sum() == 7

@@ -321,3 +321,65 @@ def test_tree_outputs_encode_each_texture_once_and_glb_obj_share_it(tmp_path, tr
     np.testing.assert_array_equal(glb["leaf"], images.read_rgba(tmp_path / "out" / "tree_leaf.png"))
     assert obj_png == images.texture_png(tree_mesh.parts[1].material.texture)
     assert images._shared is None  # the sharing ends with the call
+
+
+def test_obj_numbers_are_compiled_fixed_point_and_exact_to_half_a_micrometre():
+    from treeform.io._text_kernels import face_rows, float_rows
+
+    v = np.array([[0.0, -0.0, 1.0], [-1.5, 2.25, 1e-7], [123456.789012, -4e-7, -6e-7], [3.0000004, 10.0, -0.1]])
+    text = float_rows(np.frombuffer(b"v", np.uint8), v, 6).tobytes().decode()
+    assert text.splitlines() == ["v 0 0 1", "v -1.5 2.25 0", "v 123456.789012 0 -0.000001", "v 3 10 -0.1"]
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(5000, 3)) * 30
+    back = np.array([[float(t) for t in line.split()[1:]]
+                     for line in float_rows(np.frombuffer(b"vn", np.uint8), x, 6).tobytes().decode().splitlines()])
+    assert np.abs(back - x).max() <= 5.0001e-7
+    idx = np.array([[1, 10, 1234567890123], [7, 8, 9]])
+    assert face_rows(idx).tobytes().decode() == ("f 1/1/1 10/10/10 1234567890123/1234567890123/1234567890123\n"
+                                                 "f 7/7/7 8/8/8 9/9/9\n")
+
+
+def test_obj_falls_back_to_general_format_for_huge_coordinates(tmp_path, make_cylinder):
+    from treeform.structures.mesh import Mesh
+
+    part = make_cylinder()
+    big = part.positions.copy()
+    big[0] = [3e13, -2e12, 1.0]
+    mesh = Mesh([type(part)(big, part.normals, part.uvs, part.colors, part.indices, material=part.material)])
+    v, *_ = _parse_obj(write_obj(mesh, tmp_path / "big.obj").read_text())
+    np.testing.assert_allclose(np.array(v)[:, :3], big, rtol=1e-5, atol=1e-5)
+
+
+def test_staged_outputs_start_early_commit_together_or_leave_nothing(tmp_path, tree_mesh, skeleton):
+    import threading
+
+    from treeform.io import StagedOutputs, start_tree_outputs, write_tree_outputs
+
+    # the mesh files are written while the caller goes on; the folder appears only at the commit
+    staged = start_tree_outputs(tmp_path / "out", mesh=tree_mesh, skeleton=skeleton)
+    assert not (tmp_path / "out").exists()
+    files = write_tree_outputs(tmp_path / "out", mesh=tree_mesh, skeleton=skeleton,
+                               preview=np.zeros((8, 8, 3), np.uint8), config={"a": 1}, metrics={}, staged=staged)
+    assert {"tree.glb", "tree.obj", "skeleton.json", "skeleton.ply", "preview.png", "config.json"} <= set(files)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no staging folder left beside it
+
+    # an error after the writers started (e.g. in the render): nothing appears, they are waited for
+    started = threading.Event()
+    with pytest.raises(RuntimeError, match="render failed"):
+        with start_tree_outputs(tmp_path / "failed", mesh=tree_mesh, skeleton=skeleton) as staged:
+            staged.submit(lambda d: started.set())
+            started.wait(5)
+            raise RuntimeError("render failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+    # a writer's failure is the commit's one-line error, and nothing is left
+    def full(d):
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OutputError, match="No space left"):
+        with StagedOutputs(tmp_path / "full") as staged:
+            staged.submit(lambda d: (d / "a.txt").write_text("a"), full)
+            staged.commit()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    with pytest.raises(RuntimeError, match="already"):
+        staged.submit(lambda d: None)

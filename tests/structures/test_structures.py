@@ -132,3 +132,21 @@ def test_rdm_contains_matches_a_sphere():
     assert np.array_equal(rdm.contains(p), truth)
     lo, hi = rdm.bounds()
     assert np.all(lo >= np.array([1, 2, 3]) - 2.0001) and np.all(hi <= np.array([1, 2, 3]) + 2.0001)
+
+
+def test_rdm_compiled_lookups_equal_the_texel_formula():
+    # lookup / contains / bounds run compiled; they must pick the texel direction_to_texel picks,
+    # on ties between axes and on the axes themselves too, and bound the texel_directions points
+    rng = np.random.default_rng(2)
+    r = 32
+    rdm = RadialDistanceMap(rng.normal(size=3), (rng.random((6, r, r)) * 3).astype(np.float32))
+    d = np.concatenate([rng.normal(size=(20000, 3)), np.round(rng.normal(size=(5000, 3))),
+                        np.eye(3), -np.eye(3), [[1, 1, 1], [-1, 1, -1], [0, 0, 0]]])
+    f, row, col = direction_to_texel(d, r)
+    ref = rdm.radii[f, row, col].astype(np.float64)
+    np.testing.assert_array_equal(rdm.lookup(d), ref)
+    np.testing.assert_array_equal(rdm.contains(rdm.center + d), np.linalg.norm(d, axis=1) <= ref)
+    pts = rdm.center + texel_directions(r).reshape(-1, 3) * rdm.radii.reshape(-1, 1)
+    lo, hi = rdm.bounds()
+    np.testing.assert_array_equal(lo, pts.min(axis=0))
+    np.testing.assert_array_equal(hi, pts.max(axis=0))

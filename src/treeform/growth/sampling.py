@@ -73,22 +73,15 @@ def _eliminate(pts: np.ndarray, n: int) -> np.ndarray:
     """Drop points of the closest pairs, a batch per round, until ``n`` remain (order kept)."""
     from scipy.spatial import cKDTree
 
+    from treeform.growth._point_kernels import close_pair_drops
+
     keep = np.arange(len(pts))
     while len(keep) > n:
         excess = len(keep) - n
-        d, j = cKDTree(pts[keep]).query(pts[keep], k=2)
+        d, j = cKDTree(pts[keep]).query(pts[keep], k=2, workers=-1)
         nn, partner = d[:, 1], j[:, 1]
         order = np.argsort(nn, kind="stable")
-        drop = np.zeros(len(keep), bool)
-        taken = np.zeros(len(keep), bool)
-        budget = max(1, min(excess, len(keep) // 8))
-        for i in order:
-            if budget == 0:
-                break
-            if taken[i] or taken[partner[i]]:
-                continue
-            drop[i] = True  # one point of this close pair goes; its partner is protected this round
-            taken[i] = taken[partner[i]] = True
-            budget -= 1
+        # one point of each close pair goes; its partner is protected this round
+        drop = close_pair_drops(order, partner.astype(np.int64), max(1, min(excess, len(keep) // 8)))
         keep = keep[~drop]
     return pts[keep]

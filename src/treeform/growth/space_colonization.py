@@ -139,6 +139,8 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         d[has] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
         return d
 
+    from treeform.growth._point_kernels import nearest_new_node
+
     def update(new_lo, new_hi):
         idx = np.flatnonzero(alive)
         if len(idx) == 0:
@@ -147,23 +149,24 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         cand = cand[can_grow[cand]]
         if len(cand) == 0:
             return
+        if cos_cone is None:  # the nearest new node within d_i: a compiled grid search
+            nearest_new_node(att, idx, pos, cand, di, best_d, best_n)
+            return
+        # the perception cone: each attractor takes the nearest of its k nearest new nodes that sees it
         tree = cKDTree(pos[cand])
-        if cos_cone is None:
-            d, j = tree.query(att[idx], distance_upper_bound=di)
-        else:
-            k = min(candidates, len(cand))
-            d, j = tree.query(att[idx], k=k, distance_upper_bound=di)
-            d, j = d.reshape(len(idx), k), j.reshape(len(idx), k)
-            ok = np.isfinite(d)
-            jj = np.where(ok, j, 0)
-            nodes = cand[jj]
-            dirs = directions(nodes.ravel()).reshape(len(idx), k, 3)
-            vec = att[idx][:, None, :] - pos[nodes]
-            cosang = np.einsum("akc,akc->ak", vec, dirs) / np.maximum(np.linalg.norm(vec, axis=2), 1e-12)
-            d = np.where(ok & (cosang >= cos_cone), d, np.inf)
-            first = np.argmin(d, axis=1)
-            d = d[np.arange(len(idx)), first]
-            j = jj[np.arange(len(idx)), first]
+        k = min(candidates, len(cand))
+        d, j = tree.query(att[idx], k=k, distance_upper_bound=di)
+        d, j = d.reshape(len(idx), k), j.reshape(len(idx), k)
+        ok = np.isfinite(d)
+        jj = np.where(ok, j, 0)
+        nodes = cand[jj]
+        dirs = directions(nodes.ravel()).reshape(len(idx), k, 3)
+        vec = att[idx][:, None, :] - pos[nodes]
+        cosang = np.einsum("akc,akc->ak", vec, dirs) / np.maximum(np.linalg.norm(vec, axis=2), 1e-12)
+        d = np.where(ok & (cosang >= cos_cone), d, np.inf)
+        first = np.argmin(d, axis=1)
+        d = d[np.arange(len(idx)), first]
+        j = jj[np.arange(len(idx)), first]
         better = d < best_d[idx]
         best_d[idx[better]] = d[better]
         best_n[idx[better]] = cand[j[better]]

@@ -342,14 +342,42 @@ def write_png(array, path) -> Path:
         if not np.all(np.isfinite(a)) or a.min() < 0 or a.max() > 1:
             raise InputError("array: float images must hold finite values in [0, 1]")
         a = np.rint(a * 255).astype(np.uint8)
-    if (a.dtype == np.uint16 and a.ndim == 2) or a.dtype == np.uint8:
-        # uint8 (H, W) -> L, (H, W, 3) -> RGB, (H, W, 4) -> RGBA; uint16 (H, W) -> I;16
+    if a.dtype == np.uint8:  # (H, W) gray, (H, W, 3) RGB, (H, W, 4) RGBA
+        data = _png_bytes(a, "paeth")
+        with atomic_path(path) as tmp:
+            Path(tmp).write_bytes(data)
+    elif a.dtype == np.uint16 and a.ndim == 2:  # 16-bit gray (I;16)
         img = Image.fromarray(np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("=")))
+        with atomic_path(path) as tmp:
+            img.save(tmp, format="PNG")
     else:
         raise InputError(f"array: expected bool, uint8, 2-D uint16 or float in [0, 1], got {a.dtype}")
-    with atomic_path(path) as tmp:
-        img.save(tmp, format="PNG")
     return Path(path)
+
+
+def _png_bytes(a: np.ndarray, row_filter: str) -> bytes:
+    """PNG bytes of an (H, W), (H, W, 3) or (H, W, 4) uint8 image (gray, RGB, RGBA).
+
+    Every row gets one filter (``"sub"``: its left neighbour; ``"paeth"``: the Paeth
+    predictor) and zlib's run-length strategy: within a few per cent of the smallest file
+    at a third of the time of adaptive filters with the default strategy (a 1547×399
+    preview: 863 kB in 0.017 s against Pillow's 851 kB in 0.049 s; a 1440² photo leaf atlas
+    with "sub": 6.54 MB in 0.09 s against 6.21 MB in 0.26 s). OpenCV releases the GIL while
+    it encodes, so a folder's images encode side by side.
+    """
+    import cv2
+
+    a = np.ascontiguousarray(a, dtype=np.uint8)
+    if a.ndim == 3:
+        a = cv2.cvtColor(a, cv2.COLOR_RGB2BGR if a.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
+    params = [cv2.IMWRITE_PNG_COMPRESSION, 3, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
+    if hasattr(cv2, "IMWRITE_PNG_FILTER"):  # OpenCV >= 4.11; older ones choose filters adaptively
+        params += [cv2.IMWRITE_PNG_FILTER,
+                   cv2.IMWRITE_PNG_FILTER_SUB if row_filter == "sub" else cv2.IMWRITE_PNG_FILTER_PAETH]
+    ok, buf = cv2.imencode(".png", a, params)
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
 
 
 _shared_lock = threading.Lock()
@@ -357,21 +385,10 @@ _shared: dict | None = None  # id(texture) -> (texture, done event, [bytes or ex
 
 
 def _encode_texture(texture: np.ndarray) -> bytes:
-    """PNG bytes, deflated with the run-length strategy: for photo-like textures as small as
-    zlib level 3 and twice as fast (a 1440² leaf atlas: 6.22 MB in 0.19 s, against 6.21 MB in
-    0.29 s)."""
-    import cv2
-
+    """PNG bytes of an RGBA texture (RGB when fully opaque), rows filtered by their left
+    neighbour (:func:`_png_bytes`: a third of the time of adaptive filters, 5 % larger)."""
     tex = np.ascontiguousarray(texture, dtype=np.uint8)
-    if np.all(tex[..., 3] == 255):
-        bgr = cv2.cvtColor(np.ascontiguousarray(tex[..., :3]), cv2.COLOR_RGB2BGR)
-    else:
-        bgr = cv2.cvtColor(tex, cv2.COLOR_RGBA2BGRA)
-    ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 3,
-                                         cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE])
-    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
+    return _png_bytes(tex[..., :3] if np.all(tex[..., 3] == 255) else tex, "sub")
 
 
 def texture_png(texture: np.ndarray) -> bytes:
@@ -381,13 +398,14 @@ def texture_png(texture: np.ndarray) -> bytes:
     asks first; the others wait for its bytes (the GLB and the OBJ of a tree carry the same
     textures, and a photo leaf atlas takes a quarter of a second to encode).
     """
-    if _shared is None:
-        return _encode_texture(texture)
-    with _shared_lock:
-        entry = _shared.get(id(texture))
+    with _shared_lock:  # one look at the cache: a block ending in another thread cannot pull it away
+        cache = _shared
+        entry = None if cache is None else cache.get(id(texture))
         mine = entry is None
-        if mine:
-            entry = _shared[id(texture)] = (texture, threading.Event(), [])
+        if mine and cache is not None:
+            entry = cache[id(texture)] = (texture, threading.Event(), [])
+    if cache is None:
+        return _encode_texture(texture)
     _, done, result = entry
     if mine:
         try:

@@ -51,12 +51,32 @@ def _fmt_float(x: float) -> str:
     return f"{float(x):.6g}"
 
 
-def _write_rows(f, arr: np.ndarray, fmt: str, chunk: int = 20000) -> None:
-    """Write one formatted line per row; one C-level ``%`` per chunk (much faster than np.savetxt)."""
-    arr = np.asarray(arr)
-    for i in range(0, len(arr), chunk):
-        block = arr[i:i + chunk]
-        f.write(((fmt + "\n") * len(block)) % tuple(block.ravel().tolist()))
+OBJ_DECIMALS = 6
+"""Decimal places of the numbers in an OBJ (micrometres for positions in metres)."""
+
+
+def _write_rows(f, arr: np.ndarray, prefix: str) -> None:
+    """Write ``prefix`` and one row of ``arr`` per line to the binary file ``f``.
+
+    Floats get :data:`OBJ_DECIMALS` places, trailing zeros dropped; an int64 (N, 3) array
+    of one-based indices with prefix ``"f"`` becomes ``f a/a/a b/b/b c/c/c`` lines. Compiled
+    (:mod:`treeform.io._text_kernels`): five times faster than Python's ``%`` and without the
+    GIL. Values of 1e12 or more, or not finite, fall back to ``%.6g``.
+    """
+    from treeform.io import _text_kernels
+
+    arr = np.ascontiguousarray(arr)
+    if prefix == "f":
+        f.write(_text_kernels.face_rows(arr.astype(np.int64, copy=False)).data)
+        return
+    arr = arr.astype(np.float64, copy=False)
+    if np.all(np.abs(arr) < 1e12):
+        f.write(_text_kernels.float_rows(np.frombuffer(prefix.encode(), np.uint8), arr, OBJ_DECIMALS).data)
+        return
+    fmt = prefix + " %.6g" * arr.shape[1] + "\n"
+    for i in range(0, len(arr), 20000):
+        block = arr[i:i + 20000]
+        f.write(((fmt * len(block)) % tuple(block.ravel().tolist())).encode())
 
 
 def write_obj(mesh: Mesh, path, *, colors: str = "bake") -> Path:
@@ -144,25 +164,22 @@ def write_obj(mesh: Mesh, path, *, colors: str = "bake") -> Path:
             lines.append("")
         tmp_of[mtl_path].write_text("\n".join(lines), encoding="utf-8")
         # OBJ
-        with open(tmp_of[path], "w", encoding="utf-8", newline="\n") as f:
-            f.write(f"# treeform OBJ: {mesh.n_vertices} vertices, {mesh.n_triangles} triangles; metres, +Y up\n")
-            f.write(f"mtllib {mtl_path.name}\n")
+        with open(tmp_of[path], "wb") as f:
+            f.write(f"# treeform OBJ: {mesh.n_vertices} vertices, {mesh.n_triangles} triangles; metres, +Y up\n"
+                    f"mtllib {mtl_path.name}\n".encode())
             offset = 1
             taken_groups: set[str] = set()
             for p in parts:
                 group = _safe_name(p.name, taken_groups)
-                f.write(f"o {group}\ng {group}\n")
+                f.write(f"o {group}\ng {group}\n".encode())
                 if np.any(p.colors[:, :3] != 1.0):
-                    v = np.hstack([p.positions, np.clip(p.colors[:, :3], 0, 1)])
-                    _write_rows(f, v, "v %.6g %.6g %.6g %.4g %.4g %.4g")
+                    _write_rows(f, np.hstack([p.positions, np.clip(p.colors[:, :3], 0, 1)]), "v")
                 else:
-                    _write_rows(f, p.positions, "v %.6g %.6g %.6g")
-                vt = np.column_stack([p.uvs[:, 0], 1.0 - p.uvs[:, 1]])
-                _write_rows(f, vt, "vt %.6g %.6g")
-                _write_rows(f, p.normals, "vn %.6g %.6g %.6g")
-                f.write(f"usemtl {mat_names[id(p.material)]}\ns off\n")
-                idx = p.indices.astype(np.int64) + offset
-                _write_rows(f, np.repeat(idx, 3, axis=1), "f %d/%d/%d %d/%d/%d %d/%d/%d")
+                    _write_rows(f, p.positions, "v")
+                _write_rows(f, np.column_stack([p.uvs[:, 0], 1.0 - p.uvs[:, 1]]), "vt")
+                _write_rows(f, p.normals, "vn")
+                f.write(f"usemtl {mat_names[id(p.material)]}\ns off\n".encode())
+                _write_rows(f, p.indices.astype(np.int64) + offset, "f")
                 offset += p.n_vertices
     return path
 

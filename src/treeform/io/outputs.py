@@ -86,85 +86,179 @@ def write_json(path, data) -> Path:
     return path
 
 
+class StagedOutputs:
+    """An output folder written all-or-nothing by writers that may start before the last output exists.
+
+    Each ``writer(staging_dir)`` runs in a thread as soon as it is submitted (PNG, zlib and
+    file writing release the GIL), so a method can start writing its mesh while it still
+    renders the preview. :meth:`commit` waits for every writer and moves the files into
+    ``out_dir``; :meth:`abort` (also on leaving a ``with`` block without a commit, e.g. on
+    an error) waits for the running writers and removes the staging folder: no output file
+    appears. Writers must make distinct files and not share mutable state. Inside, each
+    texture array is PNG-encoded once (:func:`treeform.io.images.shared_textures`).
+
+    Parameters
+    ----------
+    out_dir : path
+        The output folder (it may exist); the staging folder is made beside it, on the same
+        file system, so the moves are renames.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> out = Path(tempfile.mkdtemp()) / "run"
+    >>> with StagedOutputs(out) as staged:
+    ...     _ = staged.submit(lambda d: (d / "a.txt").write_text("a"))
+    ...     # ... more work while a.txt is written ...
+    ...     files = staged.commit()
+    >>> sorted(files), sorted(p.name for p in out.iterdir())
+    (['a.txt'], ['a.txt'])
+    """
+
+    def __init__(self, out_dir):
+        from contextlib import ExitStack
+
+        from treeform.io.images import shared_textures
+
+        self.out_dir = Path(out_dir)
+        parent = self.out_dir if self.out_dir.exists() else self.out_dir.parent
+        try:
+            self._stage = Path(tempfile.mkdtemp(prefix=".treeform-", dir=parent))
+        except OSError as exc:
+            raise OutputError(f"--out {self.out_dir}: cannot write ({exc.strerror})") from None
+        self._futures = []
+        self._pool = None
+        self._done = False
+        self._stack = ExitStack()
+        self._stack.enter_context(shared_textures())
+
+    def submit(self, *writers: Callable[[Path], object]) -> "StagedOutputs":
+        """Start ``writer(staging_dir)`` for each writer (in a background thread)."""
+        if self._done:
+            raise RuntimeError("StagedOutputs: already committed or aborted")
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1),
+                                            thread_name_prefix="treeform-write")
+        self._futures += [self._pool.submit(w, self._stage) for w in writers]
+        return self
+
+    def commit(self) -> dict:
+        """Wait for every writer, then move the files into ``out_dir``.
+
+        Returns
+        -------
+        dict
+            File name -> final path.
+
+        Raises
+        ------
+        OutputError
+            One line naming ``out_dir`` when anything cannot be written (the first
+            failure in submission order); nothing is left behind.
+        """
+        if self._done:
+            raise RuntimeError("StagedOutputs: already committed or aborted")
+        try:
+            for fut in self._futures:
+                fut.result()  # the first failure, in writer order
+            try:
+                self.out_dir.mkdir(exist_ok=True)
+            except OSError as exc:
+                raise OutputError(f"--out {self.out_dir}: cannot create ({exc.strerror})") from None
+            files = {}
+            for f in sorted(self._stage.iterdir()):
+                os.replace(f, self.out_dir / f.name)
+                files[f.name] = self.out_dir / f.name
+            return files
+        except OSError as exc:
+            raise OutputError(f"--out {self.out_dir}: write failed ({exc.strerror or exc})") from None
+        finally:
+            self.abort()  # the pool and the staging folder go, whatever happened
+
+    def abort(self) -> None:
+        """Stop: cancel the writers not yet started, wait for the running ones, remove the staging folder."""
+        if self._done:
+            return
+        self._done = True
+        try:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            shutil.rmtree(self._stage, ignore_errors=True)
+            self._stack.close()
+
+    def __enter__(self) -> "StagedOutputs":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.abort()
+
+
 def write_staged(out_dir, writers: Iterable[Callable[[Path], object]]) -> dict:
     """Run ``writer(staging_dir)`` for each writer, then move every file made into ``out_dir``.
 
-    Writers must make distinct files and not share mutable state: on a multi-core machine
-    they run concurrently (threads). The staging folder sits beside ``out_dir`` (same file system, so the moves are
-    renames) and is removed in any case: on failure no output file appears.
-
-    Returns
-    -------
-    dict
-        File name -> final path.
-
-    Raises
-    ------
-    OutputError
-        One line naming ``out_dir`` when anything cannot be written.
+    :class:`StagedOutputs` with every writer submitted at once: they run concurrently
+    (threads), so they must make distinct files and not share mutable state; on failure no
+    output file appears. Returns the file name -> path dict of :meth:`StagedOutputs.commit`
+    and raises its one-line :class:`OutputError`.
     """
-    out_dir = Path(out_dir)
-    parent = out_dir if out_dir.exists() else out_dir.parent
-    try:
-        stage = Path(tempfile.mkdtemp(prefix=".treeform-", dir=parent))
-    except OSError as exc:
-        raise OutputError(f"--out {out_dir}: cannot write ({exc.strerror})") from None
-    try:
-        writers = list(writers)
-        if len(writers) > 1 and (os.cpu_count() or 1) > 1:
-            # the writers make distinct files; PNG and zlib encoding release the GIL, so the
-            # big textures (OBJ leaf atlas, GLB images, preview) encode side by side
-            from concurrent.futures import ThreadPoolExecutor
-
-            with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
-                for fut in [pool.submit(w, stage) for w in writers]:
-                    fut.result()  # the first failure, in writer order
-        else:
-            for writer in writers:
-                writer(stage)
-        try:
-            out_dir.mkdir(exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"--out {out_dir}: cannot create ({exc.strerror})") from None
-        files = {}
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out_dir / f.name)
-            files[f.name] = out_dir / f.name
-        return files
-    except OSError as exc:
-        raise OutputError(f"--out {out_dir}: write failed ({exc.strerror or exc})") from None
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    with StagedOutputs(out_dir) as staged:
+        return staged.submit(*writers).commit()
 
 
-def write_tree_outputs(out_dir, *, mesh, skeleton, preview, config: dict, metrics: dict, extra=()) -> dict:
-    """Write a tree's standard outputs all-or-nothing.
+def start_tree_outputs(out_dir, *, mesh, skeleton) -> StagedOutputs:
+    """Start writing a tree's mesh and skeleton outputs (tree.glb, tree.obj + .mtl and
+    textures, skeleton.json, skeleton.ply) into a :class:`StagedOutputs` of ``out_dir``.
 
-    tree.glb, tree.obj (+ .mtl and textures), skeleton.json, skeleton.ply, preview.png,
-    config.json and metrics.json, plus any ``extra`` writers (``writer(staging_dir)``), via
-    :func:`write_staged`.
+    A method calls it as soon as its mesh exists and goes on (rendering its preview) while
+    the files are written; :func:`write_tree_outputs` with ``staged=`` adds the rest and
+    commits. Every texture is encoded once, the biggest first; the GLB and the OBJ share the
+    bytes. ``mesh`` and ``skeleton`` must not change until the commit.
     """
     from treeform.io.gltf import write_glb
-    from treeform.io.images import shared_textures, texture_png, write_png
+    from treeform.io.images import texture_png
     from treeform.io.obj import write_obj
     from treeform.io.ply import write_skeleton_ply
 
-    # every texture encoded once, the biggest first and side by side; GLB and OBJ share the bytes
     textures = {}
     for part in mesh.parts:
         for tex in (part.material.texture, part.material.normal_texture):
             if tex is not None:
                 textures[id(tex)] = tex
-    encode = [lambda d, t=t: texture_png(t) for t in sorted(textures.values(), key=lambda t: -t.size)]
-    with shared_textures():
-        return write_staged(out_dir, [
-            *encode,
+    staged = StagedOutputs(out_dir)
+    try:
+        return staged.submit(
+            *[lambda d, t=t: texture_png(t) for t in sorted(textures.values(), key=lambda t: -t.size)],
             lambda d: write_glb(mesh, d / "tree.glb"),
             lambda d: write_obj(mesh, d / "tree.obj"),
             lambda d: skeleton.save(d / "skeleton.json"),
             lambda d: write_skeleton_ply(skeleton, d / "skeleton.ply"),
+        )
+    except BaseException:
+        staged.abort()
+        raise
+
+
+def write_tree_outputs(out_dir, *, mesh, skeleton, preview, config: dict, metrics: dict, extra=(),
+                       staged: StagedOutputs | None = None) -> dict:
+    """Write a tree's standard outputs all-or-nothing.
+
+    tree.glb, tree.obj (+ .mtl and textures), skeleton.json, skeleton.ply, preview.png,
+    config.json and metrics.json, plus any ``extra`` writers (``writer(staging_dir)``).
+    With ``staged`` (from :func:`start_tree_outputs` of the same mesh and skeleton) the mesh
+    files are already being written: only the rest is added before the commit.
+    """
+    from treeform.io.images import write_png
+
+    if staged is None:
+        staged = start_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton)
+    with staged:
+        staged.submit(
             lambda d: write_png(preview, d / "preview.png"),
             lambda d: write_json(d / "config.json", config),
             lambda d: write_json(d / "metrics.json", metrics),
             *extra,
-        ])
+        )
+        return staged.commit()

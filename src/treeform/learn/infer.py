@@ -38,6 +38,9 @@ def _cached_session(path: str, mtime: float):
     opts.intra_op_num_threads = max(1, min(4, os.cpu_count() or 1))
     opts.inter_op_num_threads = 1
     opts.log_severity_level = 3
+    # the pool's threads sleep between runs instead of spinning: a network runs beside other
+    # work (the colour rules, the writers), whose cores a spinning pool would take
+    opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
     try:
         sess = ort.InferenceSession(path, sess_options=opts, providers=["CPUExecutionProvider"])
     except Exception as exc:  # onnxruntime raises its own Fail/InvalidProtobuf types

@@ -91,7 +91,7 @@ def segment_or_mask(image: np.ndarray, user_mask, *, segmenter: str, seed: int):
 
 
 def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: float = 35.0,
-                    size: int = 512) -> dict:
+                    size: int = 512, samples: int = 1) -> dict:
     """Front, side and top renders of ``mesh``, every view framed on the whole tree.
 
     The cameras are :func:`treeform.report.preview_cameras` of the mesh's vertices: with
@@ -108,6 +108,11 @@ def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: 
     lighting : Lighting, optional
     fov_y, size
         Field of view (degrees) and image height of a fitted front camera.
+    samples : int
+        MSAA samples (:class:`treeform.render.Renderer`). One by default: the depth pre-pass
+        then shades each pixel once (three views 0.35 -> 0.16 s on llvmpipe), MSAA would
+        smooth only triangle edges (not the alpha-tested leaf cards that make most of a
+        crown's outline), and the preview panels are downscaled with a Lanczos filter.
 
     Returns
     -------
@@ -119,7 +124,7 @@ def render_previews(mesh, *, front: Camera | None = None, lighting=None, fov_y: 
 
     pts = [part.positions for part in mesh.parts if part.n_vertices]
     cams = preview_cameras(np.concatenate(pts) if pts else np.zeros((1, 3)), front=front, fov_y=fov_y, size=size)
-    renderer = Renderer(cams["front"], lighting=lighting)
+    renderer = Renderer(cams["front"], lighting=lighting, samples=samples)
     renders = {}
     try:
         for name, view in cams.items():

@@ -92,20 +92,30 @@ class RadialDistanceMap:
             raise InputError("RadialDistanceMap.center: must be finite")
 
     def lookup(self, directions: np.ndarray) -> np.ndarray:
-        """Radius (N,) along each direction (N, 3); directions need not be unit length."""
-        f, r, c = direction_to_texel(directions, self.resolution)
-        return self.radii[f, r, c].astype(np.float64)
+        """Radius (N,) along each direction (N, 3); directions need not be unit length.
+
+        The texel is :func:`direction_to_texel`'s, found by a compiled loop (the crown
+        sampling and ray marching call this hundreds of thousands of times a tree).
+        """
+        from treeform._shared import rdm_kernels as _rdm_kernels
+
+        d = np.ascontiguousarray(np.asarray(directions, np.float64).reshape(-1, 3))
+        return _rdm_kernels.lookup(d, self.radii)
 
     def contains(self, points: np.ndarray) -> np.ndarray:
-        """(N,) bool: whether each point (N, 3) lies inside the crown."""
-        d = np.asarray(points, np.float64).reshape(-1, 3) - self.center
-        dist = np.linalg.norm(d, axis=1)
-        return dist <= self.lookup(d)
+        """(N,) bool: whether each point (N, 3) lies inside the crown (within the radius of its direction)."""
+        from treeform._shared import rdm_kernels as _rdm_kernels
+
+        p = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 3))
+        return _rdm_kernels.contains(p, self.center, self.radii)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounding box (min, max) of the crown surface points."""
-        pts = self.center + texel_directions(self.resolution).reshape(-1, 3) * self.radii.reshape(-1, 1)
-        return pts.min(axis=0), pts.max(axis=0)
+        """Axis-aligned bounding box (min, max) of the crown surface points (one per texel,
+        along :func:`texel_directions`)."""
+        from treeform._shared import rdm_kernels as _rdm_kernels
+
+        lo, hi = _rdm_kernels.bounds(CUBE_FACE_MATRICES, self.center, self.radii)
+        return lo, hi
 
     def mean_radius(self) -> float:
         return float(self.radii.mean())

@@ -8,6 +8,7 @@ writes the outputs atomically.
 from __future__ import annotations
 
 import math
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import numpy as np
 from treeform import __version__
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
-from treeform.io.outputs import check_out_dir, write_json
+from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.methods._single_photo import load_photo, photo_camera, render_previews, segment_or_mask
 from treeform.methods.envelope.config import EnvelopeConfig
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
@@ -76,6 +77,9 @@ _KERNELS = {  # the compiled kernels this route calls from Python (their callees
     "growth/_leaf_kernels.py": {"nearest_points", "orient_cards", "subtree_tip_counts"},
     "geometry/_kernels.py": {"chain_layout", "card_corners", "prefix_rotations"},
     "crown/_kernels.py": {"finish_tiles"},
+    "growth/_point_kernels.py": {"close_pair_drops", "nearest_new_node"},
+    "_shared/rdm_kernels.py": {"lookup", "contains", "bounds"},
+    "io/_text_kernels.py": {"float_rows", "face_rows"},
 }
 
 
@@ -87,7 +91,7 @@ def _announce_compile():
     from treeform._shared.jit import announce_compile
 
     root = Path(treeform.__file__).parent
-    announce_compile(logging.getLogger(__name__), "the meshing and foliage kernels", 6,
+    announce_compile(logging.getLogger(__name__), "the meshing and foliage kernels", 9,
                      *(str(root / f) for f in _KERNELS), names=set().union(*_KERNELS.values()))
 
 
@@ -271,29 +275,32 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
                          bark_normal=bark_normal, seed=cfg.seed)
-    with timer.stage("render"):
-        from treeform.methods._single_photo import model_metrics, photo_metrics
-        from treeform.render import Lighting
-        from treeform.report import photo_window, preview_strip
+    # the mesh files are written (threads) while the preview renders; all or nothing
+    staged = start_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton) if out_dir is not None else None
+    with staged if staged is not None else nullcontext():
+        with timer.stage("render"):
+            from treeform.methods._single_photo import model_metrics, photo_metrics
+            from treeform.render import Lighting
+            from treeform.report import photo_window, preview_strip
 
-        # soft, camera-relative light so the front view shows the albedo the photo gave the leaves
-        light = Lighting(direction=(-0.4, 0.6, 0.7), key=(0.45, 0.45, 0.42), sky=(0.8, 0.8, 0.82),
-                         ground=(0.55, 0.54, 0.5), camera_relative=True)
-        # the front view is the photo's camera, widened to show the whole tree; side shares its scale
-        renders = render_previews(mesh, front=cam, lighting=light)
-        window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
-        metrics = {
-            **photo_metrics(renders, cam, image, seg.tree_mask),
-            "attractors": int(len(attractors)),
-            "attractors_left": sc.attractors_left,
-            **model_metrics(skeleton, foliage, mesh, photo_size=(width, height), metres_per_pixel=mpp),
-        }
-        preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
-    result = Reconstruction(ph, seg, cam, world_verts, env.faces, rdm, skeleton, foliage, mesh, metrics, cfg,
-                            renders, preview)
-    if out_dir is not None:
-        with timer.stage("export"):
-            result.files = _write_outputs(result, out_dir)
+            # soft, camera-relative light so the front view shows the albedo the photo gave the leaves
+            light = Lighting(direction=(-0.4, 0.6, 0.7), key=(0.45, 0.45, 0.42), sky=(0.8, 0.8, 0.82),
+                             ground=(0.55, 0.54, 0.5), camera_relative=True)
+            # the front view is the photo's camera, widened to show the whole tree; side shares its scale
+            renders = render_previews(mesh, front=cam, lighting=light)
+            window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
+            metrics = {
+                **photo_metrics(renders, cam, image, seg.tree_mask),
+                "attractors": int(len(attractors)),
+                "attractors_left": sc.attractors_left,
+                **model_metrics(skeleton, foliage, mesh, photo_size=(width, height), metres_per_pixel=mpp),
+            }
+            preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
+        result = Reconstruction(ph, seg, cam, world_verts, env.faces, rdm, skeleton, foliage, mesh, metrics, cfg,
+                                renders, preview)
+        if out_dir is not None:
+            with timer.stage("export"):
+                result.files = _write_outputs(result, out_dir, staged)
     metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     metrics["total_seconds"] = round(sum(timer.timings.values()), 4)
     if out_dir is not None:
@@ -301,11 +308,11 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
     return result
 
 
-def _write_outputs(res: Reconstruction, out_dir: Path) -> dict:
+def _write_outputs(res: Reconstruction, out_dir: Path, staged=None) -> dict:
     """Write every output into ``out_dir`` all-or-nothing (:func:`treeform.io.write_tree_outputs`)."""
     from treeform.io import write_tree_outputs
 
     config = {"treeform": __version__, "method": "envelope", "photo": res.photo.source,
               "config": res.config.to_dict()}
     return write_tree_outputs(out_dir, mesh=res.mesh, skeleton=res.skeleton, preview=res.preview, config=config,
-                              metrics=res.metrics)
+                              metrics=res.metrics, staged=staged)

@@ -10,6 +10,7 @@ Each arrow is one call into a domain folder; the networks run on onnxruntime
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from treeform import __version__
 from treeform._shared.timing import ProgressCallback, StageTimer
-from treeform.io.outputs import check_out_dir, write_json
+from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.methods.learned.config import LearnedConfig
 
 __all__ = ["STAGES", "LearnedReconstruction", "reconstruct"]
@@ -111,34 +112,37 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         skeleton.meta.update({"method": "learned", "source": Path(ph.source).name if ph.source else None})
     for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage
         timer.timings[k] = grown.metrics["timings"].get(k, 0.0)
-    with timer.stage("render"):
-        from treeform.methods._single_photo import photo_metrics
-        from treeform.methods.learned.grow import preview_lighting
-        from treeform.report import photo_window, preview_strip
+    # the mesh files are written (threads) while the preview renders; all or nothing
+    staged = start_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton) if out_dir is not None else None
+    with staged if staged is not None else nullcontext():
+        with timer.stage("render"):
+            from treeform.methods._single_photo import photo_metrics
+            from treeform.methods.learned.grow import preview_lighting
+            from treeform.report import photo_window, preview_strip
 
-        # the front view is the photo's camera, widened to show the whole tree; side shares its scale
-        renders = render_previews(mesh, front=cam, lighting=preview_lighting())
-        window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
-        metrics = {
-            **photo_metrics(renders, cam, image, seg.tree_mask),
-            "species": species,
-            "species_predicted": next(iter(probs)),
-            "species_probabilities": {k: round(v, 4) for k, v in probs.items()},
-            "tree_height": round(tree_h, 4),
-            "rbv_level": cfg.rbv_level,
-            **model_metrics(skeleton, foliage, mesh, photo_size=(width_px, height_px), metres_per_pixel=mpp),
-        }
-        preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
-    result = LearnedReconstruction(ph, seg, species, probs, rbv, cam, skeleton, foliage, mesh, metrics, cfg, renders,
-                                   preview)
-    if out_dir is not None:
-        with timer.stage("export"):
-            from treeform.io import write_tree_outputs
+            # the front view is the photo's camera, widened to show the whole tree; side shares its scale
+            renders = render_previews(mesh, front=cam, lighting=preview_lighting())
+            window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
+            metrics = {
+                **photo_metrics(renders, cam, image, seg.tree_mask),
+                "species": species,
+                "species_predicted": next(iter(probs)),
+                "species_probabilities": {k: round(v, 4) for k, v in probs.items()},
+                "tree_height": round(tree_h, 4),
+                "rbv_level": cfg.rbv_level,
+                **model_metrics(skeleton, foliage, mesh, photo_size=(width_px, height_px), metres_per_pixel=mpp),
+            }
+            preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
+        result = LearnedReconstruction(ph, seg, species, probs, rbv, cam, skeleton, foliage, mesh, metrics, cfg, renders,
+                                       preview)
+        if out_dir is not None:
+            with timer.stage("export"):
+                from treeform.io import write_tree_outputs
 
-            config_out = {"treeform": __version__, "method": "learned", "photo": ph.source, "config": cfg.to_dict()}
-            result.files = write_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton, preview=preview,
-                                              config=config_out, metrics=metrics,
-                                              extra=[lambda d: rbv.save(d / "rbv.npz")])
+                config_out = {"treeform": __version__, "method": "learned", "photo": ph.source, "config": cfg.to_dict()}
+                result.files = write_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton, preview=preview,
+                                                  config=config_out, metrics=metrics,
+                                                  extra=[lambda d: rbv.save(d / "rbv.npz")], staged=staged)
     metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     metrics["total_seconds"] = round(sum(v for k, v in timer.timings.items() if k not in ("leaves", "mesh")), 4)
     if out_dir is not None:

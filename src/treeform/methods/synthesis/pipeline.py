@@ -14,6 +14,7 @@ Each arrow is one call into a domain folder.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +23,7 @@ import numpy as np
 from treeform._shared.defaults import DEFAULT_SEGMENTER
 from treeform import __version__
 from treeform._shared.timing import ProgressCallback, StageTimer
-from treeform.io.outputs import check_out_dir, write_json
+from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.structures.foliage import Foliage
 from treeform.methods.synthesis.config import SPECIES_PRIORS, SynthesisConfig
 
@@ -403,35 +404,38 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
             leaf_tex = leaf_texture(256, seed=cfg.seed, outline="bezier")
         mesh = tree_mesh(smooth, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex,
                          bark_texture=bark_tex, bark_normal=bark_normal, seed=cfg.seed)
-    with timer.stage("render"):
-        from treeform.methods._single_photo import photo_metrics
-        from treeform.methods.learned.grow import preview_lighting
-        from treeform.report import photo_window, preview_strip
+    # the mesh files are written (threads) while the preview renders; all or nothing
+    staged = start_tree_outputs(out_dir, mesh=mesh, skeleton=skeleton) if out_dir is not None else None
+    with staged if staged is not None else nullcontext():
+        with timer.stage("render"):
+            from treeform.methods._single_photo import photo_metrics
+            from treeform.methods.learned.grow import preview_lighting
+            from treeform.report import photo_window, preview_strip
 
-        renders = render_previews(mesh, front=cam, lighting=preview_lighting())
-        window = photo_window(renders["front"].camera, cam)
-        errors = [c["error"] for c in candidates]
-        metrics = {
-            **photo_metrics(renders, cam, image, tree_mask),
-            "species": species,
-            **({"species_predicted": next(iter(probs)),
-                "species_probabilities": {k: round(v, 4) for k, v in probs.items()}} if probs else {}),
-            "n_branches": chosen.n_branches,
-            "n_first_order": int(sk2d.meta["n_first_order"]),
-            "skeleton_source": chosen.skeleton,
-            "wood_visible": bool(shows_wood),
-            "candidates": candidates,
-            "candidate_curve": [round(e, 6) for e in best_so_far(errors)],
-            "search_error_first": errors[0],
-            "search_error_best": best["error"],
-            **model_metrics(skeleton, foliage, mesh, photo_size=(width_px, height_px), metres_per_pixel=mpp),
-        }
-        preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
-    result = SynthesisReconstruction(ph, seg, species, cam, sk2d, skeleton, foliage, mesh, candidates, metrics, cfg,
-                                     renders, preview)
-    if out_dir is not None:
-        with timer.stage("export"):
-            result.files = _write_outputs(result, out_dir, image)
+            renders = render_previews(mesh, front=cam, lighting=preview_lighting())
+            window = photo_window(renders["front"].camera, cam)
+            errors = [c["error"] for c in candidates]
+            metrics = {
+                **photo_metrics(renders, cam, image, tree_mask),
+                "species": species,
+                **({"species_predicted": next(iter(probs)),
+                    "species_probabilities": {k: round(v, 4) for k, v in probs.items()}} if probs else {}),
+                "n_branches": chosen.n_branches,
+                "n_first_order": int(sk2d.meta["n_first_order"]),
+                "skeleton_source": chosen.skeleton,
+                "wood_visible": bool(shows_wood),
+                "candidates": candidates,
+                "candidate_curve": [round(e, 6) for e in best_so_far(errors)],
+                "search_error_first": errors[0],
+                "search_error_best": best["error"],
+                **model_metrics(skeleton, foliage, mesh, photo_size=(width_px, height_px), metres_per_pixel=mpp),
+            }
+            preview = preview_strip(renders, photo=image, segmentation=seg, keep=window)
+        result = SynthesisReconstruction(ph, seg, species, cam, sk2d, skeleton, foliage, mesh, candidates, metrics, cfg,
+                                         renders, preview)
+        if out_dir is not None:
+            with timer.stage("export"):
+                result.files = _write_outputs(result, out_dir, image, staged)
     metrics["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     metrics["total_seconds"] = round(sum(timer.timings.values()), 4)
     if out_dir is not None:
@@ -439,7 +443,7 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
     return result
 
 
-def _write_outputs(res: SynthesisReconstruction, out_dir: Path, image: np.ndarray) -> dict:
+def _write_outputs(res: SynthesisReconstruction, out_dir: Path, image: np.ndarray, staged=None) -> dict:
     """Every output into ``out_dir``, all or nothing (:func:`treeform.io.write_tree_outputs`)."""
     import json
 
@@ -462,7 +466,7 @@ def _write_outputs(res: SynthesisReconstruction, out_dir: Path, image: np.ndarra
 
     config = {"treeform": __version__, "method": "abs", "photo": res.photo.source, "config": res.config.to_dict()}
     return write_tree_outputs(out_dir, mesh=res.mesh, skeleton=res.skeleton, preview=res.preview, config=config,
-                              metrics=res.metrics, extra=[extra])
+                              metrics=res.metrics, extra=[extra], staged=staged)
 
 
 SKELETON2D_STAGES = ("load", "segment", "skeleton", "export")
