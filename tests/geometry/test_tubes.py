@@ -285,3 +285,99 @@ def test_compiled_rotation_scan_is_the_numpy_scan():
         ref, step = nxt, step * 2
     prefix_rotations(q, pos_in, int(lens.max()))
     assert np.array_equal(q, ref)
+
+
+def _numpy_frames(P, r, start, lens, pos_in):
+    """The former vectorized frame code of _tubes (tangents, parallel transport, slope, v), kept as
+    the reference the compiled tube_frames must equal to the bit."""
+    from treeform.geometry._kernels import prefix_rotations
+
+    def cross(a, b):
+        return np.cross(a, b)
+
+    def any_perp(t):
+        ref = np.zeros_like(t)
+        use_x = np.abs(t[:, 0]) < 0.9
+        ref[use_x, 0], ref[~use_x, 2] = 1.0, 1.0
+        p = ref - np.sum(ref * t, axis=1, keepdims=True) * t
+        return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+    n = len(P)
+    chain_of = np.repeat(np.arange(len(lens)), lens)
+    first, last = pos_in == 0, pos_in == (lens - 1)[chain_of]
+    seg = np.zeros((n, 3))
+    seg[:-1] = P[1:] - P[:-1]
+    seg_len = np.linalg.norm(seg, axis=1)
+    has_seg = ~last
+    valid = has_seg & (seg_len > 1e-9)
+    D = np.zeros((n, 3))
+    D[valid] = seg[valid] / seg_len[valid, None]
+    if not np.all(valid[has_seg]):
+        idx = np.arange(n)
+        fwd = np.maximum.accumulate(np.where(valid, idx, -1))
+        bwd = np.minimum.accumulate(np.where(valid, idx, n)[::-1])[::-1]
+        ok_f = (fwd >= 0) & (chain_of[np.clip(fwd, 0, None)] == chain_of)
+        ok_b = (bwd < n) & (chain_of[np.clip(bwd, None, n - 1)] == chain_of)
+        src = np.where(ok_f, fwd, np.where(ok_b, bwd, -1))
+        fill = has_seg & ~valid
+        D[fill & (src >= 0)] = D[src[fill & (src >= 0)]]
+        D[fill & (src < 0)] = (0.0, 1.0, 0.0)
+    D_prev = np.zeros_like(D)
+    D_prev[1:] = D[:-1]
+    T = np.where(first[:, None], D, np.where(last[:, None], D_prev, D + D_prev))
+    bad = np.linalg.norm(T, axis=1) < 1e-6
+    T[bad] = D[bad]
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+    Q = np.zeros((n, 4))
+    Q[:, 0] = 1.0
+    nf = ~first
+    a, b = T[np.flatnonzero(nf) - 1], T[nf]
+    q = np.empty((len(a), 4))
+    q[:, 0] = 1.0 + np.sum(a * b, axis=1)
+    q[:, 1:] = cross(a, b)
+    flip = q[:, 0] < 1e-9
+    q[flip, 0] = 0.0
+    q[flip, 1:] = any_perp(a[flip]) if flip.any() else q[flip, 1:]
+    Q[nf] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    prefix_rotations(Q, pos_in, int(lens.max()))
+    U0 = any_perp(T[start])[chain_of]
+    w, u = Q[:, :1], Q[:, 1:]
+    t = 2.0 * cross(u, U0)
+    U = U0 + w * t + cross(u, t)
+    U -= np.sum(U * T, axis=1, keepdims=True) * T
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    V = cross(T, U)
+    seg_r_mean = np.zeros(n)
+    seg_r_mean[:-1] = 0.5 * (r[:-1] + r[1:])
+    slope_seg = np.zeros(n)
+    slope_seg[:-1] = (r[1:] - r[:-1]) / np.maximum(seg_len[:-1], 1e-9)
+    slope_seg = np.where(valid, np.clip(slope_seg, -1.0, 1.0), 0.0)
+    slope_prev = np.zeros(n)
+    slope_prev[1:] = slope_seg[:-1]
+    slope = np.where(first, slope_seg, np.where(last, slope_prev, 0.5 * (slope_seg + slope_prev)))
+    dv = np.where(has_seg, seg_len / (2.0 * np.pi * np.maximum(seg_r_mean, MIN_RING_RADIUS)), 0.0)
+    cum = np.concatenate([[0.0], np.cumsum(dv[:-1])])
+    return T, U, V, slope, cum - cum[start][chain_of]
+
+
+@pytest.mark.parametrize("name", ["y", "random", "grown", "degenerate"])
+def test_compiled_tube_frames_are_the_numpy_frames(name):
+    """tube_frames (compiled) = the former vectorized frames, to the bit, zero-length segments included."""
+    from treeform.geometry._kernels import tube_frames
+
+    if name == "degenerate":  # a repeated node (zero-length segment) and a reversal
+        pos = np.array([[0, 0, 0], [0, 1, 0], [0, 1, 0], [0, 2, 0], [0, 1.5, 0], [1, 2, 0], [1, 2, 0]], float)
+        s = TreeSkeleton(pos, np.array([-1, 0, 1, 2, 3, 1, 5]), np.array([0.2, 0.1, 0.1, 0.05, 0.04, 0.05, 0.03]))
+    else:
+        s = SKELETONS[name]()
+    _, lens, nodes, start, r = chain_layout(s)
+    keep = lens >= 2
+    nodes, lens = nodes[np.repeat(keep, lens)], lens[keep]
+    start = np.cumsum(lens) - lens
+    r = np.maximum(s.radius[nodes], MIN_RING_RADIUS)
+    r[start[1:]] = np.minimum(r[start[1:]], r[start[1:] + 1])
+    pos_in = np.arange(len(nodes)) - np.repeat(start, lens)
+    P = s.positions[nodes].astype(np.float64)
+    got = tube_frames(P, r, start, lens, pos_in, MIN_RING_RADIUS)
+    for g, want in zip(got, _numpy_frames(P, r, start, lens, pos_in)):
+        assert np.array_equal(g, want, equal_nan=True)

@@ -194,13 +194,13 @@ def _chain_measure(skeleton: TreeSkeleton, chains: list) -> np.ndarray:
 
 def _chain_measure_flat(skeleton: TreeSkeleton, flat: np.ndarray, lens: np.ndarray) -> np.ndarray:
     """:func:`_chain_measure` of chains given as :func:`_chain_arrays` (``flat`` nodes, ``lens`` per chain)."""
+    from treeform.geometry._kernels import chain_max_radius
+
     if not len(lens):
         return np.zeros(0)
-    start = np.cumsum(lens) - lens
-    own = np.ones(len(flat), bool)
-    own[start[1:]] = lens[1:] < 2  # a side chain's first node belongs to its parent
-    r = np.where(own, skeleton.radius[flat], -np.inf)
-    return np.maximum.reduceat(r, start)
+    # a side chain's first node belongs to its parent (compiled: a pine has thousands of chains)
+    return chain_max_radius(np.asarray(flat, np.int64), np.asarray(lens, np.int64),
+                            np.asarray(skeleton.radius, np.float64))
 
 
 def tube_triangle_count(chain_lengths, radial_segments: int, *, root_flags=None, cap_starts: bool = False) -> int:
@@ -309,144 +309,27 @@ def _tubes(skeleton: TreeSkeleton, nodes: np.ndarray, lens: np.ndarray, root_fla
     if not len(lens):
         return _empty_part(material, "bark")
 
-    n_rings = len(nodes)
-    n_chains = len(lens)
-    start = np.cumsum(lens) - lens
-    chain_of = np.repeat(np.arange(n_chains), lens)
-    pos_in = np.arange(n_rings) - start[chain_of]
-    first = pos_in == 0
-    last = pos_in == (lens - 1)[chain_of]
+    from treeform.geometry._kernels import tube_frames, tube_geometry
 
-    P = skeleton.positions[nodes]
+    n_rings = len(nodes)
+    start = np.cumsum(lens) - lens
+    pos_in = np.arange(n_rings) - np.repeat(start, lens)
+    P = np.ascontiguousarray(skeleton.positions[nodes], np.float64)
     # ---- ring radii: side chains start (at the parent node) with the child's radius
-    r = np.maximum(skeleton.radius[nodes], MIN_RING_RADIUS)
+    r = np.maximum(skeleton.radius[nodes], MIN_RING_RADIUS).astype(np.float64)
     side_first = start[~root_flags]
     r[side_first] = np.minimum(r[side_first], r[side_first + 1])
-
-    # ---- segment directions D[k] (k -> k+1), filled across zero-length segments
-    seg = np.zeros((n_rings, 3))
-    seg[:-1] = P[1:] - P[:-1]
-    seg_len = np.linalg.norm(seg, axis=1)
-    has_seg = ~last
-    valid = has_seg & (seg_len > 1e-9)
-    D = np.zeros((n_rings, 3))
-    D[valid] = seg[valid] / seg_len[valid, None]
-    if not np.all(valid[has_seg]):
-        idx = np.arange(n_rings)
-        fwd = np.maximum.accumulate(np.where(valid, idx, -1))
-        bwd = np.minimum.accumulate(np.where(valid, idx, n_rings)[::-1])[::-1]
-        ok_f = (fwd >= 0) & (chain_of[np.clip(fwd, 0, None)] == chain_of)
-        ok_b = (bwd < n_rings) & (chain_of[np.clip(bwd, None, n_rings - 1)] == chain_of)
-        src = np.where(ok_f, fwd, np.where(ok_b, bwd, -1))
-        fill = has_seg & ~valid
-        D[fill & (src >= 0)] = D[src[fill & (src >= 0)]]
-        D[fill & (src < 0)] = (0.0, 1.0, 0.0)
-
-    # ---- ring tangents: mean of the adjacent segment directions
-    D_prev = np.zeros_like(D)
-    D_prev[1:] = D[:-1]
-    T = np.where(first[:, None], D, np.where(last[:, None], D_prev, D + D_prev))
-    tn = np.linalg.norm(T, axis=1)
-    bad = tn < 1e-6  # a reversal: fall back to the outgoing direction
-    T[bad] = D[bad]
-    T /= np.linalg.norm(T, axis=1, keepdims=True)
-
-    # ---- parallel transport: minimal rotation between consecutive tangents, scanned per chain
-    Q = np.zeros((n_rings, 4))
-    Q[:, 0] = 1.0
-    nf = ~first
-    Q[nf] = _min_rotation(T[np.flatnonzero(nf) - 1], T[nf])
-    # segmented prefix scan, log2(longest chain) passes: Q[k] <- Q[k] · Q[k - step] (later rotations
-    # on the left) where the chain reaches back that far; compiled
-    from treeform.geometry._kernels import prefix_rotations
-
-    prefix_rotations(Q, pos_in, int(lens.max()))
-    U0 = _any_perpendicular(T[start])
-    U = _qrotate(Q, U0[chain_of])
-    U -= np.sum(U * T, axis=1, keepdims=True) * T
-    U /= np.linalg.norm(U, axis=1, keepdims=True)
-    V = np.cross(T, U)
-
-    # ---- taper slope dr/ds per ring (for normals) and v coordinate
-    seg_r_mean = np.zeros(n_rings)
-    seg_r_mean[:-1] = 0.5 * (r[:-1] + r[1:])
-    slope_seg = np.zeros(n_rings)
-    slope_seg[:-1] = (r[1:] - r[:-1]) / np.maximum(seg_len[:-1], 1e-9)
-    slope_seg = np.where(valid, np.clip(slope_seg, -1.0, 1.0), 0.0)
-    slope_prev = np.zeros(n_rings)
-    slope_prev[1:] = slope_seg[:-1]
-    slope = np.where(first, slope_seg, np.where(last, slope_prev, 0.5 * (slope_seg + slope_prev)))
-    dv = np.where(has_seg, seg_len / (2.0 * np.pi * np.maximum(seg_r_mean, MIN_RING_RADIUS)), 0.0)
-    cum = np.concatenate([[0.0], np.cumsum(dv[:-1])])  # v at ring k = sum of dv over rings < k
-    vcoord = cum - cum[start][chain_of]
-
-    # ---- ring vertices (R, S+1)
+    # ---- ring frames (compiled): tangents from the adjacent segments (zero-length ones take the
+    # chain's nearest valid direction), frames parallel-transported along each chain (shortest-arc
+    # rotations, prefix-multiplied), taper slope dr/ds for the normals, v = ∫ ds / (2π r)
+    T, U, V, slope, vcoord = tube_frames(P, r, start, lens, pos_in, MIN_RING_RADIUS)
+    # ---- ring vertices (S + 1 a ring, the seam repeated exactly), a cone apex per chain, a fan
+    # per capped chain (root chains, or all with cap_starts); faces ring by ring, grouped by chain
     theta = 2.0 * np.pi * np.arange(segs + 1) / segs
     cs, sn = np.cos(theta), np.sin(theta)
-    cs[-1], sn[-1] = cs[0], sn[0]  # the seam vertex repeats the first one exactly
-    radial = cs[None, :, None] * U[:, None, :] + sn[None, :, None] * V[:, None, :]  # (R, S+1, 3)
-    ring_pos = P[:, None, :] + r[:, None, None] * radial
-    ring_nrm = (radial - slope[:, None, None] * T[:, None, :]) / np.sqrt(1.0 + slope**2)[:, None, None]
-    ring_uv = np.empty((n_rings, segs + 1, 2))
-    ring_uv[..., 0] = (np.arange(segs + 1) / segs)[None, :]
-    ring_uv[..., 1] = vcoord[:, None]
-    nv_ring = n_rings * (segs + 1)
-
-    # ---- tip cones: one apex per chain
-    tips = start + lens - 1
-    h = 0.5 * r[tips]
-    apex_pos = P[tips] + h[:, None] * T[tips]
-    apex_nrm = T[tips]
-    apex_uv = np.stack([np.full(n_chains, 0.5), vcoord[tips] + h / (2.0 * np.pi * r[tips])], axis=1)
-    apex_base = nv_ring
-
-    # ---- start fans (root chains, or all chains): duplicated ring + centre, flat normal -T
-    capped = np.ones(n_chains, bool) if cap_starts else root_flags.copy()
-    cap_chain = np.flatnonzero(capped)
-    cap_ring = start[cap_chain]
-    n_caps = len(cap_chain)
-    cap_base = apex_base + n_chains
-    cap_pos = np.concatenate([ring_pos[cap_ring], P[cap_ring][:, None, :]], axis=1)  # (K, S+2, 3)
-    cap_nrm = np.broadcast_to(-T[cap_ring][:, None, :], cap_pos.shape)
-    cap_uv = np.empty((n_caps, segs + 2, 2))
-    cap_uv[:, :-1, 0] = 0.5 + 0.5 * cs[None, :]
-    cap_uv[:, :-1, 1] = 0.5 + 0.5 * sn[None, :]
-    cap_uv[:, -1] = 0.5
-
-    positions = np.concatenate([ring_pos.reshape(-1, 3), apex_pos, cap_pos.reshape(-1, 3)])
-    normals = np.concatenate([ring_nrm.reshape(-1, 3), apex_nrm, cap_nrm.reshape(-1, 3)])
-    uvs = np.concatenate([ring_uv.reshape(-1, 2), apex_uv, cap_uv.reshape(-1, 2)])
-
-    # ---- faces, laid out ring by ring so they are grouped by chain:
-    #      [start fan S]? [side 2S] on every non-last ring, [cone S] on the last ring
-    j = np.arange(segs)
-    ring_has_cap = np.zeros(n_rings, bool)
-    ring_has_cap[cap_ring] = True
-    per_ring = np.where(last, segs, 2 * segs) + segs * ring_has_cap
-    off = np.cumsum(per_ring) - per_ring
-    faces = np.empty((int(per_ring.sum()), 3), np.int64)
-
-    cap_off = off[cap_ring]
-    centre = cap_base + np.arange(n_caps) * (segs + 2) + segs + 1
-    a = (cap_base + np.arange(n_caps) * (segs + 2))[:, None] + j[None, :]
-    fan = np.stack([np.broadcast_to(centre[:, None], a.shape), a + 1, a], axis=-1)  # faces -T
-    faces[(cap_off[:, None] + j[None, :]).reshape(-1)] = fan.reshape(-1, 3)
-
-    body = np.flatnonzero(has_seg)
-    b_off = off[body] + segs * ring_has_cap[body]
-    a = (body * (segs + 1))[:, None] + j[None, :]
-    b = a + 1
-    c = a + (segs + 1)
-    d = c + 1
-    quads = np.stack([np.stack([a, b, c], -1), np.stack([b, d, c], -1)], axis=2)  # (B, S, 2, 3)
-    faces[(b_off[:, None] + np.arange(2 * segs)[None, :]).reshape(-1)] = quads.reshape(-1, 3)
-
-    a = (tips * (segs + 1))[:, None] + j[None, :]
-    apex = (apex_base + np.arange(n_chains))[:, None]
-    cone = np.stack([a, a + 1, np.broadcast_to(apex, a.shape)], axis=-1)
-    t_off = off[tips] + segs * ring_has_cap[tips]
-    faces[(t_off[:, None] + j[None, :]).reshape(-1)] = cone.reshape(-1, 3)
+    cs[-1], sn[-1] = cs[0], sn[0]
+    capped = np.ones(len(lens), bool) if cap_starts else root_flags.copy()
+    positions, normals, uvs, faces = tube_geometry(P, r, T, U, V, slope, vcoord, cs, sn, start, lens, capped)
 
     colors = np.ones((len(positions), 4), np.float32)
-    return MeshPart(positions.astype(np.float32), normals.astype(np.float32), uvs.astype(np.float32),
-                    colors, faces.astype(np.uint32), material, "bark")
+    return MeshPart(positions, normals, uvs, colors, faces, material, "bark")

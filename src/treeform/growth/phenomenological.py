@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -210,8 +210,8 @@ class GrowthParameters:
         return self
 
     def to_dict(self) -> dict:
-        """Field name -> value (JSON-ready)."""
-        return asdict(self)
+        """Field name -> value (JSON-ready: every field is a number)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
     def from_dict(cls, d: dict, *, base: "GrowthParameters | None" = None) -> "GrowthParameters":
