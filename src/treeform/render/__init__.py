@@ -7,19 +7,21 @@
 * :func:`render_views` – front / side / back / top renders around one camera.
 * :func:`render_radial_cubemap` – the radial distance map of a closed mesh (seed 001 §3.5).
 * :func:`to_uint8_rgb` – RGBA composited over a background colour, for previews.
+
+Modules, imports flowing one way (each only from those above it): ``context`` (the GL
+context; others register :func:`~treeform.render.context.on_release` hooks), ``shaders``
+(GLSL sources), ``gpu`` (programs, vertex buffers and textures cached in the context),
+``lighting`` (:class:`Lighting`), ``result`` (:class:`RenderResult`, readback conversions),
+``renderer`` (the mesh passes of :class:`Renderer`, :func:`render_views`), ``cubemap`` (the
+radial distance map pass).
 """
 
 from treeform.render.context import get_context, release_context
 from treeform.render.cubemap import render_radial_cubemap
-from treeform.render.renderer import (
-    Lighting,
-    Renderer,
-    RenderResult,
-    clear_cache,
-    render_views,
-    to_uint8_rgb,
-    view_camera,
-)
+from treeform.render.gpu import clear_cache
+from treeform.render.lighting import Lighting
+from treeform.render.renderer import Renderer, render_views, view_camera
+from treeform.render.result import RenderResult, to_uint8_rgb
 
 __all__ = [
     "Lighting",

@@ -12,7 +12,7 @@ import threading
 
 from treeform._shared.errors import RenderError
 
-__all__ = ["get_context", "release_context", "NO_CONTEXT_MESSAGE"]
+__all__ = ["get_context", "release_context", "on_release", "NO_CONTEXT_MESSAGE"]
 
 log = logging.getLogger(__name__)
 
@@ -23,6 +23,7 @@ NO_CONTEXT_MESSAGE = (
 _REQUIRED_VERSION = 330  # OpenGL 3.3 core
 _lock = threading.Lock()
 _ctx = None
+_release_hooks: list = []  # what caches GL objects in the context frees them before it goes
 
 
 def _create():
@@ -73,16 +74,25 @@ def get_context():
     return _ctx
 
 
+def on_release(hook) -> None:
+    """Call ``hook()`` before the context is released (:func:`release_context`).
+
+    Modules that cache GL objects in the context (:mod:`treeform.render.gpu`) register here,
+    so the context needs to know none of them: imports flow one way, into this module.
+    """
+    if hook not in _release_hooks:
+        _release_hooks.append(hook)
+
+
 def release_context() -> None:
-    """Release the cached context and every GPU resource the render module cached in it."""
+    """Release the cached context and every GPU resource cached in it (the :func:`on_release` hooks first)."""
     global _ctx
     with _lock:
         if _ctx is None:
             return
-        from treeform.render import renderer as _renderer
-
-        _renderer._clear_gpu_state()
         try:
+            for hook in _release_hooks:
+                hook()
             _ctx.release()
         finally:
             _ctx = None
