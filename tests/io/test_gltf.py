@@ -263,3 +263,25 @@ def test_normal_mapped_parts_carry_unit_tangents_along_u(tmp_path):
     np.testing.assert_allclose(t1[:, :3], np.tile([-1, 0, 0], (4, 1)), atol=1e-6)
     # bitangent = w * (n x t) points along increasing v: down the quad (v = 0 at the top)
     assert (t0[:, 3] == -1).all() and (t1[:, 3] == 1).all()
+
+
+def test_read_glb_mesh_round_trip(tmp_path, tree_mesh):
+    from treeform.io.gltf import read_glb_mesh, write_glb
+
+    write_glb(tree_mesh, tmp_path / "t.glb")
+    back = read_glb_mesh(tmp_path / "t.glb")
+    parts = [p for p in tree_mesh.parts if p.n_triangles]
+    assert [p.name for p in back.parts] == [p.material.name for p in parts]
+    for a, b in zip(parts, back.parts):
+        np.testing.assert_allclose(b.positions, a.positions, atol=1e-6)
+        np.testing.assert_array_equal(b.indices, a.indices)
+        np.testing.assert_allclose(b.uvs, a.uvs, atol=1e-7)
+        np.testing.assert_allclose(b.colors, np.clip(a.colors, 0, 1), atol=1e-7)
+        assert b.material.alpha_mode == a.material.alpha_mode
+        assert b.material.double_sided == a.material.double_sided
+        assert (b.material.texture is None) == (a.material.texture is None)
+        if a.material.texture is not None:
+            np.testing.assert_array_equal(b.material.texture, a.material.texture)
+    (tmp_path / "bad.glb").write_bytes(b"glTF but not really")
+    with pytest.raises(InputError):
+        read_glb_mesh(tmp_path / "bad.glb")

@@ -19,10 +19,9 @@ import math
 import numba as nb
 import numpy as np
 
-_GAMMA = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
-_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+from treeform._shared.splitmix import next_u64
+
+_S11 = np.uint64(11)
 _TWO53 = 1.0 / 9007199254740992.0
 
 # indices into the float parameter vector (see phenomenological._param_vector)
@@ -40,13 +39,7 @@ def seed_state(rng: np.random.Generator) -> np.ndarray:
     return np.array([rng.integers(0, 2**63, dtype=np.uint64)], np.uint64)
 
 
-@nb.njit(**_JIT)
-def _next(state):
-    s = state[0] + _GAMMA
-    state[0] = s
-    z = (s ^ (s >> _S30)) * _MIX1
-    z = (z ^ (z >> _S27)) * _MIX2
-    return z ^ (z >> _S31)
+_next = next_u64  # SplitMix64 (treeform._shared.splitmix)
 
 
 @nb.njit(**_JIT)

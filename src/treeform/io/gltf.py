@@ -22,7 +22,7 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.mesh import Material, Mesh, MeshPart
 
-__all__ = ["write_glb", "read_glb", "read_glb_counts", "read_glb_textures", "accessor_array"]
+__all__ = ["write_glb", "read_glb", "read_glb_counts", "read_glb_mesh", "read_glb_textures", "accessor_array"]
 
 _GLB_MAGIC = 0x46546C67  # b"glTF"
 _CHUNK_JSON = 0x4E4F534A  # b"JSON"
@@ -603,3 +603,75 @@ def read_glb_geometry(path) -> tuple[np.ndarray, np.ndarray | None]:
     if not verts or not sum(len(v) for v in verts):
         raise InputError(f"{path}: the GLB holds no mesh vertices")
     return np.concatenate(verts), (np.concatenate(leaves) if leaves else None)
+
+
+def read_glb_mesh(path) -> Mesh:
+    """A GLB's triangles as a :class:`Mesh`: one part per primitive, in world space.
+
+    Reads what :func:`write_glb` writes (and simple glTF binaries like it): positions,
+    normals (zeros where absent), ``TEXCOORD_0``, ``COLOR_0`` (white where absent), indices,
+    and per material its name, ``baseColorFactor``, embedded ``baseColorTexture``,
+    ``alphaMode``, ``alphaCutoff``, ``doubleSided``, roughness and metallic. Node transforms
+    of the default scene are applied (normals by the inverse transpose). Normal maps and
+    animations are left out.
+
+    Raises
+    ------
+    InputError
+        Not a GLB, a malformed scene, or no triangles.
+    """
+    from PIL import Image
+
+    gltf, bin_chunk = read_glb(path)
+    materials: dict[int, Material] = {}
+
+    def material(i) -> Material:
+        if i is None:
+            return Material()
+        if i not in materials:
+            m = gltf["materials"][i]
+            pbr = m.get("pbrMetallicRoughness", {})
+            tex = None
+            ref = pbr.get("baseColorTexture")
+            if ref is not None:
+                view = gltf["bufferViews"][gltf["images"][gltf["textures"][ref["index"]]["source"]]["bufferView"]]
+                start = view.get("byteOffset", 0)
+                with Image.open(io.BytesIO(bin_chunk[start:start + view["byteLength"]])) as im:
+                    tex = np.asarray(im.convert("RGBA"))
+            materials[i] = Material(name=m.get("name", f"material_{i}"),
+                                    base_color=tuple(pbr.get("baseColorFactor", (1.0, 1.0, 1.0, 1.0))),
+                                    texture=tex, alpha_mode=m.get("alphaMode", "OPAQUE"),
+                                    alpha_cutoff=float(m.get("alphaCutoff", 0.5)),
+                                    double_sided=bool(m.get("doubleSided", False)),
+                                    roughness=float(pbr.get("roughnessFactor", 1.0)),
+                                    metallic=float(pbr.get("metallicFactor", 1.0)))
+        return materials[i]
+
+    parts = []
+    try:
+        for m, prim in scene_primitives(gltf, path):
+            if prim.get("mode", 4) != 4:
+                continue
+            att = prim["attributes"]
+            pos = accessor_array(gltf, bin_chunk, att["POSITION"]).astype(np.float64)
+            n = len(pos)
+            nrm = (accessor_array(gltf, bin_chunk, att["NORMAL"]).astype(np.float64) if "NORMAL" in att
+                   else np.zeros((n, 3)))
+            uv = accessor_array(gltf, bin_chunk, att["TEXCOORD_0"]) if "TEXCOORD_0" in att else np.zeros((n, 2))
+            col = accessor_array(gltf, bin_chunk, att["COLOR_0"]) if "COLOR_0" in att else np.ones((n, 4))
+            if col.shape[1] == 3:
+                col = np.column_stack([col, np.ones(n)])
+            idx = (accessor_array(gltf, bin_chunk, prim["indices"]).astype(np.int64) if "indices" in prim
+                   else np.arange(n)).reshape(-1, 3)
+            lin = m[:3, :3]
+            nrm = nrm @ np.linalg.inv(lin)  # (inverse transpose)ᵀ applied to row vectors
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+            mat = material(prim.get("material"))
+            parts.append(MeshPart((pos @ lin.T + m[:3, 3]).astype(np.float32), nrm.astype(np.float32),
+                                  np.asarray(uv, np.float32), np.asarray(col, np.float32),
+                                  idx.astype(np.uint32), mat, mat.name))
+    except (KeyError, IndexError, TypeError, ValueError, OSError, np.linalg.LinAlgError):
+        raise InputError(f"{path}: malformed glTF mesh or material") from None
+    if not parts or not any(len(p.indices) for p in parts):
+        raise InputError(f"{path}: no triangles in this GLB")
+    return Mesh(parts)

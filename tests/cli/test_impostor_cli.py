@@ -1,0 +1,61 @@
+"""`treeform impostor`: a grown tree's colour cubemap and RDM written all at once; bad inputs fail cleanly."""
+
+import json
+
+import numpy as np
+import pytest
+from cli_helpers import assert_clean_failure, cli
+from PIL import Image
+
+
+@pytest.fixture(scope="module")
+def grown(tmp_path_factory):
+    out = tmp_path_factory.mktemp("impostor") / "oak"
+    proc = cli("grow", "--species", "oak", "--seed", "2", "--lod", "low", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_impostor_of_a_grown_tree(grown, gl):
+    from treeform.io.gltf import read_glb_geometry
+    from treeform.structures import RadialDistanceMap
+
+    proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1")
+    assert proc.returncode == 0, proc.stderr
+    imp = grown / "impostor"
+    names = sorted(p.name for p in imp.iterdir())
+    assert names == sorted([f"color_{n}.png" for n in ("px", "nx", "py", "ny", "pz", "nz")]
+                           + ["color_cross.png", "front.png", "impostor.json", "rdm.npz"])
+    faces = [np.asarray(Image.open(imp / f"color_{n}.png")) for n in ("px", "nx", "py", "ny", "pz", "nz")]
+    assert all(f.shape == (64, 64, 3) for f in faces)
+    assert all(f.reshape(-1, 3).mean(0)[1] > f.reshape(-1, 3).mean(0)[2] for f in faces)  # leafy, every side
+    manifest = json.loads((imp / "impostor.json").read_text())
+    assert manifest["color"]["face_size"] == 64 and manifest["rdm"]["resolution"] == 32
+    # the RDM holds the whole tree (every vertex of the GLB, the thin trunk too) and is no bigger
+    rdm = RadialDistanceMap.load(imp / "rdm.npz")
+    verts, leaves = read_glb_geometry(grown / "tree.glb")
+    d = verts - rdm.center
+    r = np.linalg.norm(d, axis=1)
+    assert np.all(r <= rdm.lookup(d) * (1 + 1e-6) + 1e-5)
+    assert rdm.radii.max() <= r.max() * (1 + 1e-5)
+    assert np.median(rdm.radii[rdm.radii > 0]) < np.percentile(np.linalg.norm(leaves.reshape(-1, 3) - rdm.center,
+                                                                              axis=1), 99)
+    # same seed, same files
+    proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1", "--out", grown / "again")
+    assert proc.returncode == 0, proc.stderr
+    assert (grown / "again" / "color_nz.png").read_bytes() == (imp / "color_nz.png").read_bytes()
+
+
+def test_impostor_bad_inputs(tmp_path, grown):
+    proc = cli("impostor", tmp_path / "missing")
+    assert_clean_failure(proc)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    proc = cli("impostor", empty)
+    assert_clean_failure(proc, empty)
+    assert "tree.glb" in proc.stderr
+    (empty / "tree.glb").write_bytes(b"not a glb")
+    proc = cli("impostor", empty, "--out", tmp_path / "x")
+    assert_clean_failure(proc, tmp_path / "x")
+    proc = cli("impostor", grown, "--face", "8", "--out", tmp_path / "y")
+    assert_clean_failure(proc, tmp_path / "y")
