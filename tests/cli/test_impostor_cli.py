@@ -25,7 +25,9 @@ def test_impostor_of_a_grown_tree(grown, gl):
     imp = grown / "impostor"
     names = sorted(p.name for p in imp.iterdir())
     assert names == sorted([f"color_{n}.png" for n in ("px", "nx", "py", "ny", "pz", "nz")]
-                           + ["color_cross.png", "front.png", "impostor.json", "rdm.npz"])
+                           + ["color_cross.png", "front.png", "impostor.json", "leaflets", "rdm.npz"])
+    assert {p.name for p in (imp / "leaflets").iterdir()} >= {"rgba.png", "normal.png", "centroid.png", "ao.png",
+                                                              "depth.png", "type.png", "leaflets.json"}
     faces = [np.asarray(Image.open(imp / f"color_{n}.png")) for n in ("px", "nx", "py", "ny", "pz", "nz")]
     assert all(f.shape == (64, 64, 3) for f in faces)
     assert all(f.reshape(-1, 3).mean(0)[1] > f.reshape(-1, 3).mean(0)[2] for f in faces)  # leafy, every side
@@ -44,6 +46,10 @@ def test_impostor_of_a_grown_tree(grown, gl):
     proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1", "--out", grown / "again")
     assert proc.returncode == 0, proc.stderr
     assert (grown / "again" / "color_nz.png").read_bytes() == (imp / "color_nz.png").read_bytes()
+    # written again over itself (its leaflets/ sub-folder too): the same files, nothing left beside them
+    proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in imp.iterdir()) == names
 
 
 def test_impostor_bad_inputs(tmp_path, grown):
@@ -59,3 +65,15 @@ def test_impostor_bad_inputs(tmp_path, grown):
     assert_clean_failure(proc, tmp_path / "x")
     proc = cli("impostor", grown, "--face", "8", "--out", tmp_path / "y")
     assert_clean_failure(proc, tmp_path / "y")
+
+
+def test_reconstruct_writes_the_impostor_beside_the_tree(tmp_path, gl):
+    from pathlib import Path
+
+    sample = Path(__file__).resolve().parents[2] / "src" / "treeform" / "data" / "Celtis_occidentalis_1.jpg"
+    out = tmp_path / "tree"
+    proc = cli("reconstruct", sample, "--out", out, "--leaves", "2000", "--lod", "low", "--impostor")
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "tree.glb").is_file() and (out / "impostor" / "rdm.npz").is_file()
+    manifest = json.loads((out / "impostor" / "impostor.json").read_text())
+    assert manifest["source"].endswith("tree.glb") and manifest["leaflets"]["leaves"] > 0

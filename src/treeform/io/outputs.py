@@ -169,8 +169,15 @@ class StagedOutputs:
                 raise OutputError(f"--out {self.out_dir}: cannot create ({exc.strerror})") from None
             files = {}
             for f in sorted(self._stage.iterdir()):
-                os.replace(f, self.out_dir / f.name)
-                files[f.name] = self.out_dir / f.name
+                dest = self.out_dir / f.name
+                if f.is_dir() and dest.is_dir():  # a sub-folder written again: the new one replaces the old
+                    old = Path(tempfile.mkdtemp(prefix=f".{f.name}-old-", dir=self.out_dir))
+                    os.replace(dest, old / f.name)
+                    os.replace(f, dest)
+                    shutil.rmtree(old, ignore_errors=True)
+                else:
+                    os.replace(f, dest)
+                files[f.name] = dest
             return files
         except OSError as exc:
             raise OutputError(f"--out {self.out_dir}: write failed ({exc.strerror or exc})") from None

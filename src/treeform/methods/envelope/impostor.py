@@ -10,7 +10,8 @@ these files.
 Outputs (``impostor/`` beside the tree, all or nothing): ``rdm.npz``
 (:class:`~treeform.structures.RadialDistanceMap`), ``color_px.png`` … ``color_nz.png`` (the six
 faces, OpenGL order), ``color_cross.png`` (the faces unfolded, to look at), ``front.png`` (the
-view the colours came from) and ``impostor.json`` (the manifest).
+view the colours came from), ``leaflets/`` (a leaflet billboard and its channels, seed 001 §4.2:
+what the clipped billboard clouds draw near the camera) and ``impostor.json`` (the manifest).
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ from treeform._shared.timing import ProgressCallback, StageTimer
 
 __all__ = ["IMPOSTOR_STAGES", "FACE_NAMES", "Impostor", "make_impostor"]
 
-IMPOSTOR_STAGES = ("load", "render", "color", "rdm", "export")
+IMPOSTOR_STAGES = ("load", "render", "color", "rdm", "leaflets", "export")
 FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
+_LEAFLET_ATTRACTORS = 800
 """File suffixes of the six faces, OpenGL order (+X, -X, +Y, -Y, +Z, -Z)."""
 
 
@@ -39,6 +41,7 @@ class Impostor:
     color: np.ndarray  # (6, F, F, 3) uint8
     rdm: object  # RadialDistanceMap
     front: np.ndarray  # (H, W, 4) uint8
+    leaflets: object  # LeafletBillboard
     manifest: dict
     files: dict = field(default_factory=dict)
 
@@ -56,7 +59,7 @@ def _cross_picture(faces: np.ndarray) -> np.ndarray:
 
 
 def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 128, view_size: int = 512,
-                  seed: int = 0, progress: ProgressCallback | None = None) -> Impostor:
+                  leaflet_size: int = 256, seed: int = 0, progress: ProgressCallback | None = None) -> Impostor:
     """Colour cubemap and radial distance map of a tree from its output folder.
 
     Parameters
@@ -72,6 +75,8 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         Edge of an RDM face in texels.
     view_size : int
         Height in pixels of the front view the colours come from.
+    leaflet_size : int
+        Edge of the leaflet billboard's textures (:func:`~treeform.methods.envelope.leaflets.leaflet_billboard`).
     seed : int
     progress : callable, optional
         ``progress(stage, event, seconds)`` for :data:`IMPOSTOR_STAGES`.
@@ -86,6 +91,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
     face = check_int(face, "face", 32, 2048)
     rdm_resolution = check_int(rdm_resolution, "rdm_resolution", 8, 2048)
     view_size = check_int(view_size, "view_size", 64, 4096)
+    leaflet_size = check_int(leaflet_size, "leaflet_size", 64, 4096)
     as_rng(seed)
     src = Path(tree_dir)
     glb = src / "tree.glb" if src.is_dir() else src
@@ -138,14 +144,19 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         f, r, c = direction_to_texel(d, rdm_resolution)
         np.maximum.at(radii, (f, r, c), np.linalg.norm(d, axis=1).astype(np.float32))
         rdm = RadialDistanceMap(center, radii)
+    with timer.stage("leaflets"):
+        from treeform.methods.envelope.leaflets import leaflet_billboard, leaflet_writers
+
+        leaflets = leaflet_billboard("sphere", size=leaflet_size, attractors=_LEAFLET_ATTRACTORS, seed=seed)
     manifest = {
         "treeform": __version__, "source": str(glb), "seed": int(seed),
+        "leaflets": {"folder": "leaflets", "size": leaflet_size, "shape": "sphere", "leaves": leaflets.leaves},
         "color": {"faces": [f"color_{n}.png" for n in FACE_NAMES], "face_size": face, "order": "+X -X +Y -Y +Z -Z",
                   "cross": "color_cross.png", "front": "front.png"},
         "rdm": {"file": "rdm.npz", "resolution": rdm_resolution, "center": [round(float(c), 6) for c in center],
                 "mean_radius": round(rdm.mean_radius(), 6)},
     }
-    result = Impostor(color, rdm, front, manifest)
+    result = Impostor(color, rdm, front, leaflets, manifest)
     if out_dir is not None:
         with timer.stage("export"):
             from treeform.io.images import write_png
@@ -158,6 +169,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
                               lambda d: write_png(_cross_picture(color), d / "color_cross.png"),
                               lambda d: write_png(front, d / "front.png"),
                               lambda d: rdm.save(d / "rdm.npz"),
+                              *leaflet_writers(leaflets, seed=seed, attractors=_LEAFLET_ATTRACTORS, folder="leaflets"),
                               lambda d: write_json(d / "impostor.json", manifest))
                 result.files = staged.commit()
     manifest["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}

@@ -317,14 +317,22 @@ def channel_sheet(b: LeafletBillboard, *, gap: int = 4) -> np.ndarray:
     return sheet
 
 
-def _write(b: LeafletBillboard, out: Path, *, seed: int, attractors: int) -> dict:
+def leaflet_writers(b: LeafletBillboard, *, seed: int, attractors: int, folder: str = "") -> list:
+    """The writers (``writer(staging_dir)``, :class:`treeform.io.outputs.StagedOutputs`) of a
+    leaflet billboard's files: every channel as a PNG, the channel sheet and ``leaflets.json``,
+    in ``staging_dir / folder``."""
     from treeform import __version__
     from treeform.io import write_png
-    from treeform.io.outputs import write_json, write_staged
+    from treeform.io.outputs import write_json
+
+    def into(d: Path) -> Path:
+        target = d / folder if folder else d
+        target.mkdir(exist_ok=True)
+        return target
 
     arrays = {"rgba": b.rgba, "normal": b.normal, "centroid": b.centroid, "uv": b.uv, "ao": b.ao, "depth": b.depth,
               "type": b.type, "channels": b.sheet}
-    writers = [lambda d, k=k, a=a: write_png(a, d / f"{k}.png") for k, a in arrays.items()]
+    writers = [lambda d, k=k, a=a: write_png(a, into(d) / f"{k}.png") for k, a in arrays.items()]
     info = {"shape": b.shape, "seed": seed, "attractors": attractors, "leaves": b.leaves, "nodes": b.nodes,
             "size": int(b.rgba.shape[0]), "treeform": __version__,
             "encodings": {"normal": "(n + 1) / 2, x right, y up, z toward the viewer",
@@ -332,5 +340,11 @@ def _write(b: LeafletBillboard, out: Path, *, seed: int, attractors: int) -> dic
                           "uv": "R, G = leaflet texture coordinates (glTF, v down)", "ao": "1 = unoccluded",
                           "depth": "uint16, 0 nearest .. 65535 farthest over the bounding sphere",
                           "type": "255 leaf, 128 branch, 0 empty"}}
-    writers.append(lambda d: write_json(d / "leaflets.json", info))
-    return write_staged(out, writers)
+    writers.append(lambda d: write_json(into(d) / "leaflets.json", info))
+    return writers
+
+
+def _write(b: LeafletBillboard, out: Path, *, seed: int, attractors: int) -> dict:
+    from treeform.io.outputs import write_staged
+
+    return write_staged(out, leaflet_writers(b, seed=seed, attractors=attractors))
