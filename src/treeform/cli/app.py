@@ -114,6 +114,8 @@ LeafTexture = _choices("LeafTexture", "photo", "procedural")
 Profile = _choices("Profile", "rounded", "thin-plate")
 Colonization = _choices("Colonization", "coarse", "paper")
 Method = _choices("Method", "envelope", "learned", "abs")
+IMPOSTOR_HELP = ("Also write impostor/: the colour cubemap, radial distance map and leaflet billboard for drawing "
+                 "the tree at distance (as `treeform impostor`).")
 
 
 @app.command()
@@ -165,9 +167,7 @@ def reconstruct(
                                      "(full detail: d_k = 0.01 r, D = 0.5 d_k; slower, many more nodes)."),
     report: bool = typer.Option(False, "--report", help="Also write report.html: pictures, metrics, stage times, "
                                 "the tree in a 3D viewer (opens offline)."),
-    impostor: bool = typer.Option(False, "--impostor", help="Also write impostor/: the colour cubemap, radial "
-                                  "distance map and leaflet billboard for drawing the tree at distance "
-                                  "(as `treeform impostor`)."),
+    impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
@@ -234,10 +234,15 @@ def reconstruct(
         write_report(out, f"treeform reconstruct --method {method.value}: {Path(photo).name}",
                      getattr(res, "rbv", None))
     if impostor:
-        from treeform.methods.envelope.impostor import IMPOSTOR_STAGES, make_impostor
+        write_impostor(out, seed)
 
-        imp = run_api(make_impostor, out, seed=seed, stages=IMPOSTOR_STAGES)
-        typer.echo(f" impostor                    {Path(next(iter(imp.files.values()))).parent}")
+
+def write_impostor(out: Path, seed: int) -> None:
+    """``--impostor`` of the reconstruct commands: :func:`make_impostor` of the folder just written."""
+    from treeform.methods.envelope.impostor import IMPOSTOR_STAGES, make_impostor
+
+    imp = run_api(make_impostor, out, seed=seed, stages=IMPOSTOR_STAGES)
+    typer.echo(f" impostor                    {Path(next(iter(imp.files.values()))).parent}")
 
 
 def write_report(out: Path, title: str, rbv=None) -> None:

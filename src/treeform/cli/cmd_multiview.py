@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import Lod, app, run_api
+from treeform.cli.app import IMPOSTOR_HELP, Lod, app, run_api, write_impostor
 
 
 @app.command()
@@ -22,6 +22,7 @@ def multiview(
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
     masks: Optional[Path] = typer.Option(None, "--masks", help="Folder of per-photo mattes <photo stem>.png "
                                          "(labels 0/1/2 or white = tree) instead of the segmenter."),
+    impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),
 ):
     """Several photos around a tree -> 3D tree: SfM, mattes, visual hull, branch graph, growth (Tan et al. 2007)."""
     from treeform.methods.multiview.pipeline import STAGES, reconstruct_multiview
@@ -34,3 +35,5 @@ def multiview(
                f"{m['nodes']} branch nodes ({m['visible_nodes']} seen), {m['leaves']} leaves, "
                f"silhouette IoU {m['silhouette_iou_median']:.2f} (median over the views), "
                f"{m['total_seconds']:.1f} s -> {out}")
+    if impostor:
+        write_impostor(out, seed)

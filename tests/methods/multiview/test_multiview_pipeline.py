@@ -90,3 +90,13 @@ def test_user_mattes_replace_the_segmenter(run, tmp_path):
     with pytest.raises(InputError, match="no mask for"):
         reconstruct_multiview(cap.out / "images", masks=tmp_path / "masks", out=tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_an_impostor_of_the_multiview_tree(run, tmp_path):
+    """`treeform impostor` (and `multiview --impostor`) works on a multiview output folder too."""
+    from treeform.methods.envelope.impostor import make_impostor
+
+    imp = make_impostor(run[2], out=tmp_path / "impostor", face=64, rdm_resolution=32, leaflet_size=64)
+    assert imp.color.shape == (6, 64, 64, 3) and (tmp_path / "impostor" / "rdm.npz").is_file()
+    means = imp.color.reshape(6, -1, 3).mean(1)
+    assert np.all(means[:, 1] >= means[:, 2])  # foliage-coloured on every side
