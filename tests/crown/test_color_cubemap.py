@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from treeform._shared.errors import InputError
-from treeform.crown.color_cubemap import (color_cubemap, cross_layout, cube_edges, edge_strip, faces_from_cross,
-                                          synthesize)
+from treeform.crown.color_cubemap import (color_cubemap, cross_from_faces, cross_layout, cube_edges, edge_strip,
+                                          faces_from_cross, synthesize)
 from treeform.structures.rdm import direction_to_texel, texel_directions
 
 
@@ -33,6 +33,7 @@ def test_the_cross_is_the_cube_unfolded():
     assert faces.shape == (6, f, f, 2)
     assert all(np.all(faces[k, ..., 0] == k) for k in range(6))
     assert len(np.unique(faces[..., 1])) == 6 * f * f
+    assert np.array_equal(cross_from_faces(faces, fill=-1), np.where((lay >= 0)[..., None], canvas, -1))
     assert sum(joined for *_e, joined in cube_edges()) == 5 and len(cube_edges()) == 12
 
 

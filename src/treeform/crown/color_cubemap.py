@@ -22,7 +22,8 @@ from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform.structures.rdm import direction_to_texel
 
-__all__ = ["color_cubemap", "synthesize", "cross_layout", "faces_from_cross", "cube_edges", "edge_strip"]
+__all__ = ["color_cubemap", "synthesize", "cross_layout", "faces_from_cross", "cross_from_faces", "cube_edges",
+           "edge_strip"]
 
 _AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
 _CROSS_CELLS = {4: (1, 1), 0: (1, 2), 5: (1, 3), 1: (1, 0), 2: (0, 1), 3: (2, 1)}  # face -> (row, col)
@@ -64,6 +65,18 @@ def faces_from_cross(canvas: np.ndarray) -> np.ndarray:
     d = texel_directions(face).reshape(-1, 3)
     row, col = _cross_pixel(d, face)
     return canvas[row, col].reshape(6, face, face, *canvas.shape[2:])
+
+
+def cross_from_faces(faces: np.ndarray, fill=255) -> np.ndarray:
+    """The (3F, 4F, C) cross of six (F, F, C) faces, ``fill`` outside it: :func:`faces_from_cross` undone."""
+    from treeform.structures.rdm import texel_directions
+
+    faces = np.asarray(faces)
+    face = faces.shape[1]
+    out = np.full((3 * face, 4 * face, *faces.shape[3:]), fill, faces.dtype)
+    row, col = _cross_pixel(texel_directions(face).reshape(-1, 3), face)
+    out[row, col] = faces.reshape(-1, *faces.shape[3:])
+    return out
 
 
 def cube_edges():

@@ -216,3 +216,8 @@ def _texture_gpu(state: _State, texture: np.ndarray | None):
 
 
 on_release(_clear_gpu_state)
+
+
+def _mat_bytes(m: np.ndarray) -> bytes:
+    """A (4, 4) matrix as the column-major float32 bytes of a GLSL ``mat4`` uniform."""
+    return np.ascontiguousarray(np.asarray(m, np.float64).T, np.float32).tobytes()

@@ -16,6 +16,7 @@ import numpy as np
 from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError, RenderError
 from treeform.render.context import get_context
+from treeform.render.gpu import _mat_bytes
 from treeform.render.result import RenderResult
 from treeform.structures.camera import Camera
 
@@ -97,10 +98,6 @@ _BOX = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1
                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
 
 
-def _mat(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(np.asarray(m, np.float64).T, np.float32).tobytes()
-
-
 def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
                         light=(-0.4, 0.8, 0.5)) -> RenderResult:
     """Draw a radial distance map as a relief-mapped impostor from ``camera``.
@@ -166,7 +163,7 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable_only(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.cull_face = "front"  # the box's far faces: every ray through the box gets a fragment, eye inside or not
-        for name, value in (("u_view", _mat(camera.view_matrix())), ("u_proj", _mat(camera.projection_matrix()))):
+        for name, value in (("u_view", _mat_bytes(camera.view_matrix())), ("u_proj", _mat_bytes(camera.projection_matrix()))):
             prog[name].write(value)
         prog["u_eye"].value = tuple(float(x) for x in camera.position)
         prog["u_center"].value = tuple(float(x) for x in rdm.center)

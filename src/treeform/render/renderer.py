@@ -29,7 +29,7 @@ import numpy as np
 
 from treeform._shared.checks import check_choice
 from treeform._shared.errors import InputError, RenderError
-from treeform.render.gpu import _get_state, _part_gpu, _texture_gpu, clear_cache
+from treeform.render.gpu import _get_state, _mat_bytes, _part_gpu, _texture_gpu, clear_cache
 from treeform.render.lighting import MAX_LIGHTS, Lighting
 from treeform.render.result import RenderResult, _unpremultiply, to_uint8_rgb
 from treeform.render.shaders import _ALPHA_MODES
@@ -55,10 +55,6 @@ def _check_rgba(value, name) -> tuple:
     if len(v) != 4 or not all(0.0 <= x <= 1.0 for x in v):
         raise InputError(f"{name}: expected 4 floats in [0, 1], got {value!r}")
     return v
-
-
-def _mat_bytes(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(np.asarray(m, np.float64).T, np.float32).tobytes()  # column-major
 
 
 def _set(program, name, value):

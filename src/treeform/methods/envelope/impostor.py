@@ -46,18 +46,6 @@ class Impostor:
     files: dict = field(default_factory=dict)
 
 
-def _cross_picture(faces: np.ndarray) -> np.ndarray:
-    """The six faces unfolded into their cross (white outside), as the synthesis laid them out."""
-    from treeform.crown.color_cubemap import _cross_pixel
-    from treeform.structures.rdm import texel_directions
-
-    f = faces.shape[1]
-    out = np.full((3 * f, 4 * f, 3), 255, np.uint8)
-    row, col = _cross_pixel(texel_directions(f).reshape(-1, 3), f)
-    out[row, col] = faces.reshape(-1, 3)
-    return out
-
-
 def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 128, view_size: int = 512,
                   leaflet_size: int = 256, seed: int = 0, progress: ProgressCallback | None = None) -> Impostor:
     """Colour cubemap and radial distance map of a tree from its output folder.
@@ -119,7 +107,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
             renderer.release()
         front = np.dstack([res.color[..., :3], np.where(res.mask, 255, 0).astype(np.uint8)])
     with timer.stage("color"):
-        from treeform.crown.color_cubemap import color_cubemap
+        from treeform.crown.color_cubemap import color_cubemap, cross_from_faces
 
         color = color_cubemap(front, face=face, seed=seed)
     with timer.stage("rdm"):
@@ -166,7 +154,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
             with StagedOutputs(out_dir) as staged:
                 staged.submit(*[lambda d, n=n, i=i: write_png(color[i], d / f"color_{n}.png")
                                 for i, n in enumerate(FACE_NAMES)],
-                              lambda d: write_png(_cross_picture(color), d / "color_cross.png"),
+                              lambda d: write_png(cross_from_faces(color), d / "color_cross.png"),
                               lambda d: write_png(front, d / "front.png"),
                               lambda d: rdm.save(d / "rdm.npz"),
                               *leaflet_writers(leaflets, seed=seed, attractors=_LEAFLET_ATTRACTORS, folder="leaflets"),
