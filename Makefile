@@ -47,8 +47,9 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_multiview.py
 
 # the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill).
-# The shipped segmenter (width 24, logits at every pixel, 320-px scenes, 6000 steps x 32) wants a GPU: 11 min
-# on an H200 with 15 processes composing the scenes (about 17 h on 2 CPU cores). `make weights-cpu` is the
+# The shipped segmenter (width 24, logits at every pixel, 320-px scenes, 6000 steps x 32, then a 3600-step
+# fine-tune with bushes, sparse trees drawn oftener and a per-scene tree Dice term) wants a GPU: 11 + 6 min
+# on an H200 / H100 with 15 processes composing the scenes (about 27 h on 2 CPU cores). `make weights-cpu` is the
 # 2-hour CPU chain (the smaller stride-4 net of 2026-11-23, trained in two stages: 64.8 % synthetic mean IoU).
 DATA := out/data
 RUNS := out/weights
@@ -61,7 +62,8 @@ weights-data: $(STAMP) sysdeps
 	$(VENV)/bin/treeform dataset generate --n 400 --out $(DATA)/test --seed 2 --shard-size 200
 weights: weights-data
 	$(VENV)/bin/treeform train seg $(SEG_COMMON) --out $(RUNS)/seg --steps 6000 --batch 32 --size 320 --width 24 --fine-stride 1 --photo-trees 0.15 --noise 0.03 --device auto --workers $(SEG_WORKERS)
-	cp $(RUNS)/seg/model.onnx src/treeform/learn/weights/seg.onnx
+	$(VENV)/bin/treeform train seg $(SEG_COMMON) --out $(RUNS)/seg_ft --init $(RUNS)/seg/model.onnx --lr 1e-3 --steps 3600 --batch 32 --size 320 --width 24 --fine-stride 1 --repeats 3 --photo-trees 0.15 --noise 0.03 --bushes 0.25 --sparse-boost 0.7 --tree-dice 0.5 --device auto --workers $(SEG_WORKERS)
+	cp $(RUNS)/seg_ft/model.onnx src/treeform/learn/weights/seg.onnx
 	$(MAKE) weights-masks
 weights-cpu: weights-data
 	$(VENV)/bin/treeform train seg $(SEG_COMMON) --out $(RUNS)/seg --fine-stride 4 --photo-trees 0 --noise 0

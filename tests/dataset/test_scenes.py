@@ -153,3 +153,46 @@ def test_sprite_labels_shrink_with_the_image_not_by_sampling_phase():
         assert np.array_equal(np.flatnonzero((out == 2).all(0)), [5])
         assert (out == 1).sum() == 5 * 3
     assert not _resample_labels(np.zeros((8, 8), np.uint8), (4, 4), cv2.INTER_AREA).any()
+
+
+def test_bushes_behind_the_foot_are_background_and_off_by_default():
+    tree, others = _sprite(), [_sprite(1), _sprite(2, known=False)]
+    plain = compose_scene(None, others, np.random.default_rng(5), size=96)
+    bushy = compose_scene(None, others, np.random.default_rng(5), size=96, bushes=1.0)
+    off = compose_scene(None, others, np.random.default_rng(5), size=96, bushes=0.0)
+    assert np.array_equal(plain[0], off[0])  # bushes=0 draws nothing: yesterday's scenes stay the same
+    assert not bushy[1].any()  # leafy bushes are labelled background
+    # they stand on the ground below the horizon, and are leafy crowns (of the sprites given)
+    from treeform.dataset.scenes import _bushes
+
+    canvas = np.zeros((96, 96, 3), np.float32)
+    crown = _sprite(1).rgba.astype(np.float32) / 255.0
+    for k in range(5):
+        c = canvas.copy()
+        _bushes(c, lambda: crown, np.random.default_rng(k), horizon=60)
+        painted = c.sum(-1) > 0
+        # feet from the horizon (60) down, at most a third of the frame high
+        assert painted[60:].any() and not painted[:24].any()
+        r, g, b = c[painted].mean(0)
+        assert g > r and g > b  # the crown's green leaves
+    # with a main tree the tree keeps its labels (bushes are behind it)
+    img, lab = compose_scene(tree, others, np.random.default_rng(6), size=96, bushes=1.0)
+    assert set(np.unique(lab)) <= {0, 1, 2} and (lab > 0).mean() > 0.02
+
+
+def test_sparse_boost_draws_thin_cutouts_more_often():
+    from treeform.learn.data import SceneStream
+
+    dense = _sprite(0, known=False)
+    thin_rgba = dense.rgba.copy()
+    thin_lab = dense.labels.copy()
+    thin_rgba[::2, :, 3] = 0  # every other row gone: half the fill
+    thin_rgba[:, ::2, 3] = 0
+    thin_lab[thin_rgba[..., 3] == 0] = 0
+    thin = Sprite(thin_rgba, thin_lab, "thin")
+    even = SceneStream([], [dense, thin], size=64, cutout_fraction=1.0)
+    boosted = SceneStream([], [dense, thin], size=64, cutout_fraction=1.0, sparse_boost=1.0)
+    assert even._cut_p is None
+    fill = np.array([(dense.labels > 0).mean(), (thin.labels > 0).mean()])
+    assert boosted._cut_p[1] / boosted._cut_p[0] == pytest.approx(fill[0] / fill[1], rel=1e-6)
+    assert boosted._cut_p[1] > 0.7

@@ -146,3 +146,43 @@ def test_unsure_pixels_carry_no_loss():
     other = logits.clone()
     other[:, :, :4] = torch.randn(2, 3, 4, 8) * 5  # anything where the labels are unsure
     assert torch.allclose(_partial_ce(logits, labels, 3.0), _partial_ce(other, labels, 3.0))
+
+
+def test_tree_dice_weighs_a_small_tree_like_a_large_one():
+    from treeform.learn.train import _partial_ce
+
+    labels = torch.zeros(2, 32, 32, dtype=torch.uint8)
+    labels[0, 4:30, 4:30] = 1  # a crown that fills the frame
+    labels[1, 20:24, 15:17] = 3  # a sapling of 8 pixels (cut-out: tree of unknown part)
+    good = torch.full((2, 3, 32, 32), -8.0)
+    good[:, 0][labels == 0] = 8.0
+    good[:, 1][labels > 0] = 8.0
+    missed = good.clone()  # the same, but the sapling called background
+    missed[1, 0][labels[1] > 0], missed[1, 1][labels[1] > 0] = 8.0, -8.0
+    base = _partial_ce(missed, labels, 3.0) - _partial_ce(good, labels, 3.0)
+    dice = _partial_ce(missed, labels, 3.0, tree_dice=0.5) - _partial_ce(good, labels, 3.0, tree_dice=0.5)
+    # missing 8 of 2048 pixels is almost free for the cross-entropy; the per-scene Dice term counts it as half
+    # of a scene's tree lost: 0.5 x (1 - 1/17) / 2 scenes
+    assert base < 0.15 and dice - base > 0.2
+    # right answers cost (almost) nothing more with the term
+    assert _partial_ce(good, labels, 3.0, tree_dice=0.5) - _partial_ce(good, labels, 3.0) < 0.05
+
+
+def test_a_checkpoint_from_before_the_new_settings_resumes(tmp_path, tiny_data):
+    """Settings added later (bushes, sparse boost, tree Dice) take their defaults for an older checkpoint."""
+    from treeform.learn.train import train_seg
+
+    opts = dict(steps=3, batch=2, size=64, chunk=4, repeats=1, checkpoint_every=1, threads=1, width=8)
+    with pytest.raises(KeyboardInterrupt):
+        train_seg(tiny_data, tmp_path / "r", progress=_fail_at(2), **opts)
+    ck = tmp_path / "r" / "checkpoint.pt"
+    state = torch.load(ck, weights_only=False)
+    for k in ("bush_fraction", "sparse_boost", "tree_dice"):
+        del state["config"][k]  # as written before these settings existed
+    torch.save(state, ck)
+    m = train_seg(tiny_data, tmp_path / "r", **opts)
+    assert m["steps"] == 3
+    from treeform._shared.errors import InputError
+
+    with pytest.raises(InputError, match="other settings"):
+        train_seg(tiny_data, tmp_path / "r", **{**opts, "tree_dice": 0.5})

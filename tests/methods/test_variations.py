@@ -254,7 +254,9 @@ def test_season_reference_takes_the_tree_and_its_trunk_only(references):
         return float((_to_space(px, "lab")[:, 2] < -8).mean())
 
     assert blue(image.reshape(-1, 3)) > 0.2 and blue(ref.crown) < 0.02  # the sky is left out
-    assert ref.has_trunk and len(ref.trunk) > 0.03 * len(ref.crown)
+    # (the network's trunk is the bark alone, 2.9 % of the crown's pixels; the colour rules' was 7 %, planters
+    # at its foot included)
+    assert ref.has_trunk and len(ref.trunk) > 0.02 * len(ref.crown)
     ys = np.nonzero(ref.labels == 2)[0]
     rows = np.nonzero(ref.labels.any(1))[0]
     assert np.median(ys) > rows.min() + 0.7 * (rows.max() - rows.min())  # at the foot of the tree

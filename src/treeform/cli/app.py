@@ -143,7 +143,7 @@ def reconstruct(
                                                 "species')."),
     segmenter: Optional[SegmenterName] = typer.Option(
         None, "--segmenter", help=f"Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network); "
-                                  f"default: the learned method's network, else {DEFAULT_SEGMENTER}."),
+                                  f"default {DEFAULT_SEGMENTER}."),
     foliage: FoliageKind = typer.Option(FoliageKind.auto, "--foliage",
                                         help="Leaf cards: broadleaf, needles (pine) or scales (thuja); auto: "
                                              "envelope needles for --crown conical, learned the species'."),

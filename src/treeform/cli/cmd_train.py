@@ -37,6 +37,12 @@ def seg_cmd(
                                     "(plain DeepLab-V3+)."),
     size: int = typer.Option(224, "--size", help="Edge of the square training scenes in pixels (the test scenes too)."),
     width: int = typer.Option(16, "--width", help="SegNet channel base (16: about 0.3 M parameters; 24: 0.7 M)."),
+    bushes: float = typer.Option(0.0, "--bushes", help="Share of scenes with leafy bushes behind the tree's foot "
+                                 "(labelled background)."),
+    sparse_boost: float = typer.Option(0.0, "--sparse-boost", help="Draw cut-outs with weights fill^-BOOST (0 = "
+                                       "uniformly; 1 = sparse and leafless trees as often as dense crowns' pixels)."),
+    tree_dice: float = typer.Option(0.0, "--tree-dice", help="Weight of a per-scene Dice term on the tree (small and "
+                                    "thin trees weigh as much as large crowns)."),
     repeats: int = typer.Option(2, "--repeats", help="Passes (with flips) over each round's composed scenes; more "
                                 "when the optimiser outruns the scene composition (a GPU)."),
 ):
@@ -47,7 +53,8 @@ def seg_cmd(
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
                 seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
                 fine_stride=fine_stride, photo_tree_fraction=photo_trees, noise_negatives=noise,
-                size=size, width=width, repeats=repeats, display=TrainProgress("seg"),
+                size=size, width=width, repeats=repeats, bush_fraction=bushes, sparse_boost=sparse_boost,
+                tree_dice=tree_dice, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),
                         ("--init", init)))
     r, c = m.get("renders"), m.get("cutouts")

@@ -466,6 +466,28 @@ def _clutter(img: np.ndarray, horizon: int, rng) -> None:
             img[max(0, y - bh):y] = img[max(0, y - bh):y] * 0.3 + col * 0.7
 
 
+def _bushes(img: np.ndarray, other, rng, horizon: int) -> None:
+    """A row of bushes (or a clipped hedge) on the ground, textured with crowns of ``other()`` sprites."""
+    H, W = img.shape[:2]
+    foot = rng.uniform(max(horizon, 0.55 * H), 1.02 * H)
+    hh = H * rng.uniform(0.06, 0.3)
+    x = rng.uniform(-0.3, 0.3) * W
+    end = x + W * rng.uniform(0.4, 1.6)
+    while x < end:
+        rgba = other()
+        crown = rgba[: max(2, int(rgba.shape[0] * rng.uniform(0.45, 0.75)))]  # the crown, without the trunk
+        if crown[..., 3].max() < 0.5:
+            break
+        bw = hh * rng.uniform(1.2, 4.0)
+        bh = hh * rng.uniform(0.7, 1.1)
+        # squash the crown into a bush of (bw, bh): paste at height bh, then stretch horizontally
+        sx = bw / max(1.0, bh * crown.shape[1] / crown.shape[0])
+        wide = cv2.resize(crown, (max(2, int(crown.shape[1] * sx)), crown.shape[0]), interpolation=cv2.INTER_LINEAR)
+        _paste(img, None, np.ascontiguousarray(wide), None, bh, x + bw / 2, foot + rng.uniform(-0.02, 0.02) * H,
+               blur=rng.uniform(0.0, 1.5))
+        x += bw * rng.uniform(0.5, 0.9)
+
+
 def camera_effects(img: np.ndarray, sky_col, rng) -> np.ndarray:
     """A float RGB image in [0, 1] as a camera might have taken it: haze, defocus, exposure,
     white balance, gamma, noise and JPEG artefacts (each drawn from ``rng``). Returns uint8."""
@@ -485,7 +507,7 @@ def camera_effects(img: np.ndarray, sky_col, rng) -> np.ndarray:
 
 
 def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int = 256,
-                  background: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  background: np.ndarray | None = None, bushes: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """One randomised training scene: the main ``tree`` over clutter and other trees.
 
     Parameters
@@ -500,6 +522,10 @@ def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int =
     background : ndarray, shape (size, size, 3), uint8, optional
         A ready background (e.g. from a pre-drawn pool); default: a new
         :func:`~treeform.dataset.procedural_background`.
+    bushes : float
+        Probability of a row of bushes or a hedge behind the tree's foot, textured with the
+        crown of another sprite (real leaves, labelled background): what a photo of a park
+        tree has behind its trunk, and what colour texture alone cannot tell from the crown.
 
     Returns
     -------
@@ -540,6 +566,8 @@ def compose_scene(tree: Sprite | None, others: list[Sprite], rng, *, size: int =
             _paste(img, None, other(), None, S * rng.uniform(0.12, 0.55), rng.uniform(-0.1, 1.1) * S,
                    horizon + rng.uniform(-0.02, 0.08) * S, haze=rng.uniform(0.1, 0.6), haze_col=sky_col,
                    blur=rng.uniform(0.0, 2.0))
+    if others and bushes > 0 and rng.random() < bushes:
+        _bushes(img, other, rng, horizon)
     if tree is not None:
         rgba, labels = _tree_look(tree, rng)
         if rng.random() < 0.5:

@@ -168,11 +168,20 @@ class SceneStream:
         all background.
     pool : int
         Procedural backgrounds kept; ``pool // 8`` are redrawn per chunk.
+    bush_fraction : float
+        ``bushes`` of :func:`~treeform.dataset.scenes.compose_scene`: share of scenes with a row
+        of leafy bushes behind the tree's foot (labelled background).
+    sparse_boost : float
+        Cut-outs are drawn with weights ``fill ** -sparse_boost``, ``fill`` the share of a
+        cut-out's box its tree covers: 0 draws them uniformly; 1 makes a leafless or sparse
+        tree (a trunk and twigs, fill ~0.1) as frequent in the scenes as a dense crown's
+        pixels are, so thin trees are not a rounding error of the loss.
     """
 
     def __init__(self, renders, cutouts=(), *, size: int = 224, seed: int = 0, cutout_fraction: float = 0.35,
                  negatives: float = 0.08, photos=(), photo_fraction: float = 0.2, photo_trees=(),
-                 photo_tree_fraction: float = 0.0, noise_fraction: float = 0.0, pool: int = 256):
+                 photo_tree_fraction: float = 0.0, noise_fraction: float = 0.0, pool: int = 256,
+                 bush_fraction: float = 0.0, sparse_boost: float = 0.0):
         self.renders, self.cutouts = list(renders), list(cutouts)
         if not self.renders and not self.cutouts:
             raise InputError("no tree sprites to compose scenes from")
@@ -185,6 +194,12 @@ class SceneStream:
         self.photo_tree_fraction = photo_tree_fraction if self.photo_trees else 0.0
         self.noise_fraction = float(noise_fraction)
         self.pool_size = int(pool)
+        self.bush_fraction = float(bush_fraction)
+        self._cut_p = None
+        if sparse_boost and self.cutouts:
+            fill = np.array([max(1e-3, float((c.labels > 0).mean())) for c in self.cutouts])
+            w = fill ** -float(sparse_boost)
+            self._cut_p = w / w.sum()
         self._pool: list | None = None
 
     def _background(self, k: int):
@@ -222,7 +237,8 @@ class SceneStream:
             if u < self.negatives:
                 tree = None
             elif u < self.negatives + self.cutout_fraction:
-                tree = self.cutouts[int(rng.integers(len(self.cutouts)))]
+                tree = self.cutouts[int(rng.choice(len(self.cutouts), p=self._cut_p) if self._cut_p is not None
+                                        else rng.integers(len(self.cutouts)))]
             else:
                 pool = self.renders or self.cutouts
                 tree = pool[int(rng.integers(len(pool)))]
@@ -231,7 +247,8 @@ class SceneStream:
                                       blur=(3.0 * self.size / 512, 8.0 * self.size / 512))
             else:
                 bg = bgs[int(rng.integers(len(bgs)))]
-            imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size, background=bg)
+            imgs[i], labs[i] = compose_scene(tree, others, rng, size=self.size, background=bg,
+                                             bushes=self.bush_fraction)
         return imgs, labs
 
 

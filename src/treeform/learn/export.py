@@ -102,7 +102,7 @@ def load_onnx_into(model, path, *, calibrate) -> None:
             m.weight.copy_(torch.from_numpy(w.copy()))
             parent, _, idx = name.rpartition(".")
             bn = mods.get(f"{parent}.{int(idx) + 1}") if idx.isdigit() else None
-            bias = torch.from_numpy(b.copy()) if b is not None else torch.zeros(w.shape[0])
+            bias = (torch.from_numpy(b.copy()) if b is not None else torch.zeros(w.shape[0])).to(m.weight.device)
             if isinstance(bn, torch.nn.BatchNorm2d):
                 bn.running_mean.zero_()
                 bn.running_var.fill_(1.0 - bn.eps)

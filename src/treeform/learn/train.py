@@ -74,6 +74,14 @@ class SegTrainConfig:
     colour rules (when ``photos`` are given; :func:`~treeform.dataset.scenes.photo_pseudo_labels`)."""
     noise_negatives: float = 0.03
     """Share of scenes that are random noise, all background (noise is texture everywhere, like foliage)."""
+    bush_fraction: float = 0.0
+    """Share of scenes with a row of leafy bushes behind the tree's foot, labelled background
+    (:class:`~treeform.learn.data.SceneStream`)."""
+    sparse_boost: float = 0.0
+    """Cut-outs drawn with weights ``fill ** -sparse_boost`` (0: uniformly): sparse and leafless trees oftener."""
+    tree_dice: float = 0.0
+    """Weight of a per-scene Dice term on the tree (foliage + wood against background): a sapling that
+    covers 1 % of the frame weighs as much as a crown that fills it (0: none)."""
     init: str = ""
     """ONNX weights of a SegNet of the same shape to start from (fine-tuning), e.g. the shipped seg.onnx."""
     seed: int = 0
@@ -92,9 +100,9 @@ class SegTrainConfig:
         return cls(**check_known_options(cls, d))
 
 
-def _partial_ce(logits, labels, wood_weight: float):
+def _partial_ce(logits, labels, wood_weight: float, tree_dice: float = 0.0):
     """Cross-entropy with partial labels: 0/1/2 as usual, 3 = 'foliage or wood' (log of their summed prob),
-    255 = no loss."""
+    255 = no loss; plus a Dice term on wood and, with ``tree_dice``, a per-scene Dice term on the tree."""
     torch = _torch()
     logp = torch.log_softmax(logits, 1)
     lab = labels.long()
@@ -113,7 +121,18 @@ def _partial_ce(logits, labels, wood_weight: float):
         dice = 1 - (2 * (p * t).sum() + 1) / (p.sum() + t.sum() + 1)
     else:
         dice = logits.sum() * 0
-    return ce + 0.5 * wood_weight / 2.5 * dice
+    loss = ce + 0.5 * wood_weight / 2.5 * dice
+    if tree_dice > 0:
+        tree_t = ((lab >= 1) & (lab <= 3)).float()
+        has_tree = tree_t.flatten(1).sum(1) > 0
+        if has_tree.any():
+            valid = (lab != 255).float()
+            pt = torch.softmax(logits, 1)[:, 1:3].sum(1) * valid
+            tt = tree_t * valid
+            inter = (pt * tt).flatten(1).sum(1)
+            d = 1 - (2 * inter + 1) / (pt.flatten(1).sum(1) + tt.flatten(1).sum(1) + 1)
+            loss = loss + tree_dice * d[has_tree].mean()
+    return loss
 
 
 _RUNTIME_ONLY = ("threads", "device", "workers", "checkpoint_every")
@@ -141,7 +160,7 @@ def _compose_round(r: int, n: int):
 
 
 def _scene_stream(data, cutouts, photos, *, size, seed, cutout_fraction, negatives, photo_fraction,
-                  photo_tree_fraction=0.0, noise_negatives=0.0):
+                  photo_tree_fraction=0.0, noise_negatives=0.0, bush_fraction=0.0, sparse_boost=0.0):
     """The training :class:`~treeform.learn.data.SceneStream` of ``train_seg`` (also built in each worker)."""
     from treeform.dataset.scenes import load_photos, photo_pseudo_labels
     from treeform.learn.data import SceneStream
@@ -156,7 +175,8 @@ def _scene_stream(data, cutouts, photos, *, size, seed, cutout_fraction, negativ
                 trees.append((ph, lab))
     return SceneStream(renders, cuts, size=size, seed=seed, cutout_fraction=cutout_fraction, negatives=negatives,
                        photos=bg_photos, photo_fraction=photo_fraction, photo_trees=trees,
-                       photo_tree_fraction=photo_tree_fraction, noise_fraction=noise_negatives)
+                       photo_tree_fraction=photo_tree_fraction, noise_fraction=noise_negatives,
+                       bush_fraction=bush_fraction, sparse_boost=sparse_boost)
 
 
 class _Rounds:
@@ -276,7 +296,8 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     make_stream = functools.partial(_scene_stream, data, cutouts, photos, size=cfg.size, seed=cfg.seed,
                                     cutout_fraction=cfg.cutout_fraction, negatives=cfg.negatives,
                                     photo_fraction=cfg.photo_fraction, photo_tree_fraction=cfg.photo_tree_fraction,
-                                    noise_negatives=cfg.noise_negatives)
+                                    noise_negatives=cfg.noise_negatives, bush_fraction=cfg.bush_fraction,
+                                    sparse_boost=cfg.sparse_boost)
     dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
     model = SegNet(cfg.width, fine_stride=cfg.fine_stride).to(dev)
@@ -287,7 +308,8 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     step, prior_seconds = 0, 0.0
     if ckpt_path.exists():
         state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        if not _same_run(state.get("config") or {}, asdict(cfg)):
+        # settings added since the checkpoint was written take their defaults (they did not exist then)
+        if not _same_run({**asdict(SegTrainConfig()), **(state.get("config") or {})}, asdict(cfg)):
             raise InputError(f"{ckpt_path}: written with other settings; use another --out or delete it")
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
@@ -351,7 +373,7 @@ def _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_s
         yt = torch.from_numpy(np.ascontiguousarray(y)).to(dev)
         for g in opt.param_groups:
             g["lr"] = _lr_at(step, cfg.steps, cfg.lr)
-        loss = _partial_ce(model(xt), yt, cfg.wood_weight)
+        loss = _partial_ce(model(xt), yt, cfg.wood_weight, cfg.tree_dice)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()

@@ -30,7 +30,7 @@ class EnvelopeConfig:
     tree_height: float = 10.0
     """Assumed height of the tree in metres (a single photo has no absolute scale)."""
     segmenter: str = DEFAULT_SEGMENTER
-    """Tree segmentation: 'classical' (colour rules + graph cut, default) or 'learned' (the network)."""
+    """Tree segmentation: 'learned' (the network, default) or 'classical' (colour rules + graph cut)."""
     fov_y: float = 40.0
     """Vertical field of view of the photo's camera in degrees."""
     crown: str = "round"

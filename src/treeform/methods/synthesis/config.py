@@ -46,7 +46,7 @@ class SynthesisConfig:
     levels: int = 2
     """Branch orders the skeletonisation recurses to (§3.5)."""
     segmenter: str = DEFAULT_SEGMENTER
-    """Tree segmentation: 'classical' (colour rules + graph cut, default) or 'learned' (the network)."""
+    """Tree segmentation: 'learned' (the network, default) or 'classical' (colour rules + graph cut)."""
     max_size: int = 640
     """Long side in pixels the photo is reduced to before any work."""
     tree_height: float = 10.0

@@ -129,7 +129,7 @@ class CloudConfig:
     seed: int = 0
     """Random seed: same picture + seed -> byte-identical GLB and JSON."""
     segmenter: str = DEFAULT_SEGMENTER
-    """A photo (no transparency) is made into a billboard first: 'classical' (default) or 'learned' segmentation."""
+    """A photo (no transparency) is made into a billboard first: 'learned' (default) or 'classical' segmentation."""
     size: int = 1024
     """Side of the normalised picture the cloud is made of, pixels (§4.1: 1024)."""
     segments: int = 256
