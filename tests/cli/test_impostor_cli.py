@@ -52,6 +52,23 @@ def test_impostor_of_a_grown_tree(grown, gl):
     assert sorted(p.name for p in imp.iterdir()) == names
 
 
+def test_baked_colours_of_a_grown_tree(grown, gl, tmp_path):
+    """--colors baked: the mesh's own colours all round (same RDM), deterministic, leafy on every side."""
+    out = tmp_path / "baked"
+    proc = cli("impostor", grown, "--face", "32", "--rdm-resolution", "32", "--colors", "baked", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    manifest = json.loads((out / "impostor.json").read_text())
+    assert manifest["color"]["made_by"] == "baked"
+    faces = [np.asarray(Image.open(out / f"color_{n}.png")).reshape(-1, 3).mean(0) for n in ("px", "nx", "pz", "nz")]
+    assert all(f[1] > f[2] for f in faces)  # the leaves' green on the four sides
+    proc = cli("impostor", grown, "--face", "32", "--rdm-resolution", "32", "--colors", "baked", "--out", tmp_path / "b2")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "b2" / "color_px.png").read_bytes() == (out / "color_px.png").read_bytes()
+    proc = cli("impostor", grown, "--colors", "painted", "--out", tmp_path / "bad")
+    assert_clean_failure(proc, tmp_path / "bad")
+    assert "colors" in proc.stderr
+
+
 def test_impostor_bad_inputs(tmp_path, grown):
     proc = cli("impostor", tmp_path / "missing")
     assert_clean_failure(proc)

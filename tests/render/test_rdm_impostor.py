@@ -70,3 +70,26 @@ def test_bad_input(gl):
         render_rdm_impostor(rdm, cam, color=np.zeros((6, 4, 5, 3), np.uint8))
     with pytest.raises(InputError, match="steps"):
         render_rdm_impostor(rdm, cam, steps=1)
+
+
+def test_baked_colours_are_the_meshs_own_on_every_side(gl, meshes):
+    """A sphere red where x > 0 and blue where x < 0: the baked cubemap is red toward +X, blue toward -X,
+    and split down the middle on the +Y and +Z faces."""
+    from treeform.render import bake_color_cubemap
+    from treeform.structures import Material, Mesh, MeshPart
+
+    pos, nrm, faces = meshes.sphere(center=(0.0, 3.0, 0.0), radius=2.0)
+    east = pos[faces].mean(1)[:, 0] > 0
+    uv = np.zeros((len(pos), 2))
+    parts = [MeshPart(pos, nrm, uv, None, faces[side], Material(name, rgba, None, "OPAQUE", 0.5, True))
+             for side, name, rgba in ((east, "red", (1, 0, 0, 1)), (~east, "blue", (0, 0, 1, 1)))]
+    rdm = RadialDistanceMap(np.array([0.0, 3.0, 0.0]), np.full((6, 16, 16), 2.0, np.float32))
+    col = bake_color_cubemap(Mesh(parts), rdm, face=16, view_size=96).astype(int)
+    assert col.shape == (6, 16, 16, 3)
+    d = texel_directions(16)
+    red = col[..., 0] > col[..., 2] + 100
+    blue = col[..., 2] > col[..., 0] + 100
+    assert red[d[..., 0] > 0.15].mean() > 0.97 and blue[d[..., 0] < -0.15].mean() > 0.97
+    assert red[0].all() and blue[1].all()  # +X and -X faces
+    with pytest.raises(InputError, match="nothing to bake"):
+        bake_color_cubemap(Mesh([]), rdm)

@@ -300,3 +300,24 @@ def test_camera_relative_lighting_lights_every_view_alike(gl, meshes):
         Lighting(direction=(0, 0, 0))
     with pytest.raises(InputError, match="key"):
         Lighting(key=(1, 1))
+
+
+def test_alpha_tested_leaves_keep_their_coverage_at_distance(gl, meshes):
+    """Small leaves on a card (8 % of it): drawn 128 px wide and 16 px wide, about the same share of
+    the card stays opaque (coverage-preserving mip levels; plain averaged alpha keeps 0.8 % at 16 px
+    and nothing at 8 px)."""
+    import cv2
+
+    rng = np.random.default_rng(0)
+    tex = np.zeros((256, 256, 4), np.uint8)
+    for _ in range(120):
+        cv2.circle(tex, (int(rng.integers(256)), int(rng.integers(256))), int(rng.integers(2, 6)), (40, 120, 30, 255), -1)
+    base = float((tex[..., 3] >= 128).mean())
+    part = meshes.quad(material=Material("leaf", (1, 1, 1, 1), tex, "MASK", 0.5, True))
+    shares = []
+    for size in (128, 16):
+        cam = Camera(size, size, 2 * np.degrees(np.arctan(1 / 2.5)), (0.0, 0.0, 2.5), (0.0, 0.0, 0.0))
+        res = Renderer(cam, lighting=UNLIT, samples=1).render(part)
+        shares.append(float(res.mask.mean()))
+    assert 0.05 < base < 0.12
+    assert abs(shares[0] - base) < 0.02 and abs(shares[1] - base) < 0.02, (base, shares)

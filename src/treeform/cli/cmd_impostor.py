@@ -17,12 +17,15 @@ def impostor_cmd(
     face: int = typer.Option(256, "--face", help="Edge of a colour cubemap face, texels (canvas 4F x 3F)."),
     rdm_resolution: int = typer.Option(128, "--rdm-resolution", help="Edge of a radial distance map face, texels."),
     seed: int = typer.Option(0, "--seed", help="Seed of the texture synthesis."),
+    colors: str = typer.Option("synthesis", "--colors", help="Colour cubemap: 'synthesis' (from the front view: all a "
+                               "single photo shows) or 'baked' (the mesh's own colours from all round: a grown or "
+                               "multi-view tree)."),
 ):
     """Synthesize the tree's colour cubemap from its front view (seamless over every cube edge) and its RDM."""
     from treeform.methods.envelope.impostor import IMPOSTOR_STAGES, make_impostor
 
     res = run_api(make_impostor, tree_dir, out=out, face=face, rdm_resolution=rdm_resolution, seed=seed,
-                  stages=IMPOSTOR_STAGES, inputs=[tree_dir])
+                  colors=colors, stages=IMPOSTOR_STAGES, inputs=[tree_dir])
     t = res.manifest["timings"]
     typer.echo(f"impostor of {tree_dir}: 6 colour faces of {face}² and an RDM of 6 x {rdm_resolution}² "
                f"(mean radius {res.rdm.mean_radius():.2f} m) in {sum(t.values()):.1f} s -> "

@@ -82,21 +82,6 @@ def reconstruction_scale(rec, case) -> float:
     return h_gt / h_rec if h_rec > 0 else 1.0
 
 
-def _view_camera(lo: np.ndarray, hi: np.ndarray, azimuth: float, elevation: float, size: int):
-    """A narrow-angle (near-orthographic) camera on the view direction framing the box lo..hi."""
-    from treeform.structures import Camera
-
-    center = 0.5 * (lo + hi)
-    radius = max(1e-3, 0.5 * float(np.linalg.norm(hi - lo)))
-    fov = 8.0
-    dist = radius / math.sin(math.radians(fov) / 2)
-    az, el = math.radians(azimuth), math.radians(elevation)
-    d = np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
-    up = (0.0, 0.0, -1.0) if elevation > 80 else (0.0, 1.0, 0.0)
-    return Camera(size, size, fov, tuple(center + dist * d), tuple(center), up,
-                  near=max(1e-3, dist - 1.2 * radius), far=dist + 1.2 * radius)
-
-
 def novel_view_ious(gt_mesh, rec_mesh, *, size: int = 160) -> dict:
     """Silhouette IoU of two meshes already in one frame, from each of :data:`VIEWS`.
 
@@ -117,7 +102,9 @@ def novel_view_ious(gt_mesh, rec_mesh, *, size: int = 160) -> dict:
 
     (la, ha), (lb, hb) = gt_mesh.bounds(), rec_mesh.bounds()
     lo, hi = np.minimum(la, lb).astype(np.float64), np.maximum(ha, hb).astype(np.float64)
-    cams = {k: _view_camera(lo, hi, az, el, size) for k, (az, el) in VIEWS.items()}
+    from treeform.structures.camera import box_camera
+
+    cams = {k: box_camera(lo, hi, az, el, size) for k, (az, el) in VIEWS.items()}
     renderer = Renderer(cams["front"], samples=1)
     out = {}
     try:

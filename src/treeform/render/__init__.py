@@ -5,7 +5,8 @@
   :class:`RenderResult` with ``color`` (H, W, 4) uint8, ``mask`` (H, W) bool and ``depth``
   (H, W) float32 metres along the view axis, row 0 at the top (Camera.project's pixel grid).
 * :func:`render_views` – front / side / back / top renders around one camera.
-* :func:`render_radial_cubemap` – the radial distance map of a closed mesh (seed 001 §3.5).
+* :func:`render_radial_cubemap` – the radial distance map of a closed mesh (seed 001 §3.5);
+  :func:`bake_color_cubemap` – a mesh's own colours on that map's surface.
 * :func:`render_rdm_impostor` – a radial distance map drawn by relief mapping (seed 001 §4.1).
 * :func:`to_uint8_rgb` – RGBA composited over a background colour, for previews.
 
@@ -18,7 +19,7 @@ radial distance map pass), ``impostor`` (the relief-mapped RDM).
 """
 
 from treeform.render.context import get_context, release_context
-from treeform.render.cubemap import render_radial_cubemap
+from treeform.render.cubemap import bake_color_cubemap, render_radial_cubemap
 from treeform.render.gpu import clear_cache
 from treeform.render.impostor import render_rdm_impostor
 from treeform.render.lighting import Lighting
@@ -33,6 +34,7 @@ __all__ = [
     "get_context",
     "release_context",
     "render_radial_cubemap",
+    "bake_color_cubemap",
     "render_rdm_impostor",
     "render_views",
     "to_uint8_rgb",

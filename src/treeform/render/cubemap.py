@@ -5,6 +5,10 @@ centred at ``c`` and keeps, per texel, the largest distance ``|p - c|`` of any s
 along that direction (blend equation MAX into an R32F target, no depth test). The face order and
 texel layout are those of :mod:`treeform.structures.rdm`, so the result is directly the
 ``radii`` of a :class:`~treeform.structures.rdm.RadialDistanceMap`.
+
+:func:`bake_color_cubemap` gives a relief impostor the colours of a full 3D mesh (a grown tree,
+a multi-view reconstruction): what the mesh shows, seen from outside, where each texel's
+direction meets the RDM's surface.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from treeform._shared.errors import InputError, RenderError
 from treeform.render.context import get_context
 from treeform.structures.rdm import CUBE_FACE_MATRICES
 
-__all__ = ["render_radial_cubemap"]
+__all__ = ["render_radial_cubemap", "bake_color_cubemap"]
 
 _VERTEX = """
 #version 330
@@ -194,3 +198,86 @@ def render_radial_cubemap(positions: np.ndarray, faces: np.ndarray, center, *, v
     # readback row 0 = window y 0 = NDC y -1 = t -1 = rdm row 0: no flip
     tiles = np.frombuffer(raw, np.float32).reshape(2, res, 3, res)
     return np.ascontiguousarray(tiles.transpose(0, 2, 1, 3).reshape(6, res, res))
+
+
+# the directions the mesh is drawn from: the six axes and the eight cube diagonals (azimuth, elevation)
+_BAKE_VIEWS = ([(az, 0.0) for az in (0.0, 90.0, 180.0, 270.0)] + [(0.0, 90.0), (0.0, -90.0)]
+               + [(az, el) for az in (45.0, 135.0, 225.0, 315.0) for el in (35.26, -35.26)])
+
+
+def bake_color_cubemap(mesh, rdm, *, face: int = 128, view_size: int = 512) -> np.ndarray:
+    """Colour cubemap of a mesh on its radial distance map's surface, baked from views of the mesh.
+
+    Each texel's direction ``d`` from the RDM's centre ``c`` gives the point
+    ``p = c + R(d) d`` on the RDM's surface. The mesh is drawn (unlit albedo, alpha-tested
+    leaves) from the six axes and the eight cube diagonals by narrow-angle cameras, and the
+    texel takes the colour seen at ``p``'s pixel in the view that faces ``d`` the most among
+    the views in which that pixel shows the tree: the mesh's own colours on every side, where
+    :func:`treeform.crown.color_cubemap.color_cubemap` synthesizes them from one front view
+    (the only choice for a single photo). Texels that no view covers (a gap through the whole
+    crown) take the colour of the nearest covered texel of their face.
+
+    Parameters
+    ----------
+    mesh : Mesh or MeshPart
+    rdm : RadialDistanceMap
+        Its surface carries the colours; its centre is the cubemap's.
+    face : int
+        Edge of a colour face in texels.
+    view_size : int
+        Edge of each baking view in pixels.
+
+    Returns
+    -------
+    ndarray, shape (6, face, face, 3), uint8
+        Faces in OpenGL order (+X, -X, +Y, -Y, +Z, -Z), laid out as
+        :func:`treeform.structures.rdm.texel_directions`.
+    """
+    import cv2
+    from scipy import ndimage
+
+    from treeform._shared.checks import check_int
+    from treeform.render.lighting import Lighting
+    from treeform.render.renderer import Renderer, _as_mesh
+    from treeform.structures.camera import box_camera
+    from treeform.structures.rdm import texel_directions
+
+    face = check_int(face, "face", 4, 4096)
+    view_size = check_int(view_size, "view_size", 16, 8192)
+    mesh = _as_mesh(mesh)
+    pts = [p.positions for p in mesh.parts if p.n_vertices]
+    if not pts:
+        raise InputError("mesh: nothing to bake (no vertices)")
+    pts = np.concatenate(pts).astype(np.float64)
+    lo, hi = np.minimum(pts.min(0), rdm.bounds()[0]), np.maximum(pts.max(0), rdm.bounds()[1])
+    dirs = texel_directions(face).reshape(-1, 3)
+    surface = np.asarray(rdm.center, np.float64) + dirs * rdm.lookup(dirs)[:, None]
+    best = np.full(len(dirs), -np.inf)
+    color = np.zeros((len(dirs), 3), np.uint8)
+    unlit = Lighting(key=(0.0, 0.0, 0.0), sky=(1.0, 1.0, 1.0), ground=(1.0, 1.0, 1.0))
+    for az, el in _BAKE_VIEWS:
+        cam = box_camera(lo, hi, az, el, view_size)
+        r = Renderer(cam, samples=1, background=(0.0, 0.0, 0.0, 0.0), lighting=unlit)
+        try:
+            res = r.render(mesh)
+        finally:
+            r.release()
+        uvz = cam.project(surface)
+        u = np.clip(np.floor(uvz[:, 0]).astype(np.int64), 0, view_size - 1)
+        v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, view_size - 1)
+        seen = res.mask[v, u]
+        toward = -np.asarray(cam.axes()[2])  # from the tree toward this view's camera
+        score = np.where(seen, dirs @ toward, -np.inf)
+        take = score > best
+        best[take] = score[take]
+        color[take] = res.color[v[take], u[take], :3]
+    color = color.reshape(6, face, face, 3)
+    covered = np.isfinite(best).reshape(6, face, face)
+    for f in range(6):
+        if covered[f].any() and not covered[f].all():
+            _, (ri, ci) = ndimage.distance_transform_edt(~covered[f], return_indices=True)
+            color[f] = color[f][ri, ci]
+        elif not covered[f].any():
+            color[f] = np.median(color[covered], axis=0).astype(np.uint8) if covered.any() else 0
+    # one texel a leaf, the next the sky through a gap: a 3x3 median per face settles the speckle
+    return np.stack([cv2.medianBlur(np.ascontiguousarray(c), 3) for c in color])

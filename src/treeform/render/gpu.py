@@ -205,6 +205,9 @@ def _texture_gpu(state: _State, texture: np.ndarray | None):
     h, w = texture.shape[:2]
     tex = state.ctx.texture((w, h), 4, data=np.ascontiguousarray(texture, np.uint8).tobytes())
     tex.build_mipmaps()
+    if texture.shape[2] == 4 and texture[..., 3].min() < 255:  # alpha-tested: keep its coverage at distance
+        for level, img in enumerate(coverage_mipmaps(texture)[1:], start=1):
+            tex.write(img.tobytes(), level=level)
     import moderngl
 
     tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
@@ -216,6 +219,76 @@ def _texture_gpu(state: _State, texture: np.ndarray | None):
 
 
 on_release(_clear_gpu_state)
+
+
+def coverage_mipmaps(rgba: np.ndarray, cutoff: float = 0.5) -> list:
+    """Mip levels of an alpha-tested RGBA texture that keep its coverage (Castaño 2010).
+
+    Averaging alpha over 2x2 texels lowers it wherever leaves and gaps mix, so an alpha test
+    at ``cutoff`` passes fewer and fewer texels down the chain: a needle or a leaf card seen
+    from far away fades to nothing. Here each level (box-filtered from the one above, its
+    colour averaged with alpha as the weight so that transparent texels do not darken the
+    edges) gets its alpha scaled by the factor whose alpha test passes the same share of
+    texels as the full-size texture's.
+
+    Parameters
+    ----------
+    rgba : ndarray, shape (H, W, 4), uint8
+    cutoff : float
+        The alpha test's threshold in [0, 1] (glTF's default 0.5).
+
+    Returns
+    -------
+    list of ndarray
+        ``[rgba, level1, level2, ...]`` down to 1x1, each (max(1, H >> k), max(1, W >> k), 4) uint8.
+
+    Examples
+    --------
+    Sixty small leaves on a 128-texel texture: plain box-filtered alpha passes 15 %, 14 %, 14 %,
+    10 %, 3 % and 0 % of the texels down the chain; these levels keep about 15 %.
+
+    >>> import cv2
+    >>> rng = np.random.default_rng(0)
+    >>> tex = np.zeros((128, 128, 4), np.uint8)
+    >>> for _ in range(60):
+    ...     _ = cv2.circle(tex, (int(rng.integers(128)), int(rng.integers(128))), int(rng.integers(2, 6)),
+    ...                    (40, 120, 30, 255), -1)
+    >>> levels = coverage_mipmaps(tex)
+    >>> [lv.shape[0] for lv in levels]
+    [128, 64, 32, 16, 8, 4, 2, 1]
+    >>> [round(float((lv[..., 3] >= 128).mean()), 2) for lv in levels[:5]]
+    [0.15, 0.16, 0.16, 0.16, 0.16]
+    >>> bool((levels[3][..., :3][levels[3][..., 3] > 0] == (40, 120, 30)).all())  # no dark fringes
+    True
+    """
+    import cv2
+
+    rgba = np.ascontiguousarray(rgba, np.uint8)
+    c = cutoff * 255.0
+    target = float((rgba[..., 3] >= c).mean())
+    out = [rgba]
+    cur = rgba.astype(np.float32)
+    while cur.shape[0] > 1 or cur.shape[1] > 1:
+        h, w = cur.shape[:2]
+        size = (max(1, w >> 1), max(1, h >> 1))
+        a = cv2.resize(np.ascontiguousarray(cur[..., 3]), size, interpolation=cv2.INTER_AREA)
+        wc = cv2.resize(np.ascontiguousarray(cur[..., :3] * cur[..., 3:4]), size, interpolation=cv2.INTER_AREA)
+        plain = cv2.resize(np.ascontiguousarray(cur[..., :3]), size, interpolation=cv2.INTER_AREA)
+        a3 = a.reshape(size[1], size[0], 1)
+        col = np.where(a3 > 1e-3, wc.reshape(a3.shape[:2] + (3,)) / np.maximum(a3, 1e-3),
+                       plain.reshape(a3.shape[:2] + (3,)))
+        cur = np.dstack([col, a])
+        lo, hi = 0.0, 64.0  # the scale whose test passes ``target`` of the texels (coverage grows with it)
+        for _ in range(24):
+            mid = 0.5 * (lo + hi)
+            if float((a * mid >= c).mean()) < target:
+                lo = mid
+            else:
+                hi = mid
+        k = hi if target > 0 else 1.0
+        level = np.dstack([col, np.minimum(a * k, 255.0)])
+        out.append(np.clip(np.rint(level), 0, 255).astype(np.uint8))
+    return out
 
 
 def _mat_bytes(m: np.ndarray) -> bytes:

@@ -145,3 +145,28 @@ class Camera:
             return cls(**json.loads(Path(path).read_text()))
         except (OSError, json.JSONDecodeError, TypeError) as exc:
             raise InputError(f"{path}: not a treeform camera file ({type(exc).__name__})") from None
+
+
+def box_camera(lo, hi, azimuth: float, elevation: float, size: int) -> Camera:
+    """A narrow-angle (near-orthographic, 8°) square camera looking at the box lo..hi's centre.
+
+    It stands on the direction (azimuth about +Y from +Z, elevation up from the horizon, in
+    degrees) at the distance where the box's bounding sphere fills the image; looking straight
+    down or up (|elevation| > 80°), image up is -Z.
+
+    Examples
+    --------
+    >>> cam = box_camera(np.zeros(3), np.ones(3), 0.0, 0.0, 64)
+    >>> [round(float(x), 3) for x in cam.project(np.array([[0.5, 0.5, 0.5]]))[0, :2]]
+    [32.0, 32.0]
+    """
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    center = 0.5 * (lo + hi)
+    radius = max(1e-3, 0.5 * float(np.linalg.norm(hi - lo)))
+    fov = 8.0
+    dist = radius / math.sin(math.radians(fov) / 2)
+    az, el = math.radians(azimuth), math.radians(elevation)
+    d = np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
+    up = (0.0, 0.0, -1.0) if abs(elevation) > 80 else (0.0, 1.0, 0.0)
+    return Camera(int(size), int(size), fov, tuple(float(x) for x in center + dist * d),
+                  tuple(float(x) for x in center), up, near=max(1e-3, dist - 1.2 * radius), far=dist + 1.2 * radius)

@@ -26,9 +26,9 @@ from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform._shared.timing import ProgressCallback, StageTimer
 
-__all__ = ["IMPOSTOR_STAGES", "FACE_NAMES", "Impostor", "make_impostor"]
+__all__ = ["IMPOSTOR_STAGES", "IMPOSTOR_COLORS", "FACE_NAMES", "Impostor", "make_impostor"]
 
-IMPOSTOR_STAGES = ("load", "render", "color", "rdm", "leaflets", "export")
+IMPOSTOR_STAGES = ("load", "render", "rdm", "color", "leaflets", "export")
 FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
 _LEAFLET_ATTRACTORS = 800
 """File suffixes of the six faces, OpenGL order (+X, -X, +Y, -Y, +Z, -Z)."""
@@ -46,8 +46,14 @@ class Impostor:
     files: dict = field(default_factory=dict)
 
 
+IMPOSTOR_COLORS = ("synthesis", "baked")
+"""How the colour cubemap is made: synthesized from the front view (seed 001 §3.3: a single photo's
+tree, whose other sides nobody saw) or baked from views of the mesh all round (a 3D tree)."""
+
+
 def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 128, view_size: int = 512,
-                  leaflet_size: int = 256, seed: int = 0, progress: ProgressCallback | None = None) -> Impostor:
+                  leaflet_size: int = 256, seed: int = 0, colors: str = "synthesis",
+                  progress: ProgressCallback | None = None) -> Impostor:
     """Colour cubemap and radial distance map of a tree from its output folder.
 
     Parameters
@@ -66,6 +72,10 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
     leaflet_size : int
         Edge of the leaflet billboard's textures (:func:`~treeform.methods.envelope.leaflets.leaflet_billboard`).
     seed : int
+    colors : {'synthesis', 'baked'}
+        The colour cubemap: texture synthesis from the front view
+        (:func:`~treeform.crown.color_cubemap.color_cubemap`), or the mesh's own colours seen
+        from outside on the RDM's surface (:func:`~treeform.render.bake_color_cubemap`).
     progress : callable, optional
         ``progress(stage, event, seconds)`` for :data:`IMPOSTOR_STAGES`.
 
@@ -81,6 +91,9 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
     view_size = check_int(view_size, "view_size", 64, 4096)
     leaflet_size = check_int(leaflet_size, "leaflet_size", 64, 4096)
     as_rng(seed)
+    from treeform._shared.checks import check_choice
+
+    check_choice(colors, "colors", IMPOSTOR_COLORS)
     src = Path(tree_dir)
     glb = src / "tree.glb" if src.is_dir() else src
     if not glb.is_file():
@@ -106,10 +119,6 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         finally:
             renderer.release()
         front = np.dstack([res.color[..., :3], np.where(res.mask, 255, 0).astype(np.uint8)])
-    with timer.stage("color"):
-        from treeform.crown.color_cubemap import color_cubemap, cross_from_faces
-
-        color = color_cubemap(front, face=face, seed=seed)
     with timer.stage("rdm"):
         from treeform.render import render_radial_cubemap
         from treeform.structures import RadialDistanceMap
@@ -132,6 +141,15 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         f, r, c = direction_to_texel(d, rdm_resolution)
         np.maximum.at(radii, (f, r, c), np.linalg.norm(d, axis=1).astype(np.float32))
         rdm = RadialDistanceMap(center, radii)
+    with timer.stage("color"):
+        from treeform.crown.color_cubemap import color_cubemap, cross_from_faces
+
+        if colors == "baked":
+            from treeform.render import bake_color_cubemap
+
+            color = bake_color_cubemap(mesh, rdm, face=face, view_size=view_size)
+        else:
+            color = color_cubemap(front, face=face, seed=seed)
     with timer.stage("leaflets"):
         from treeform.methods.envelope.leaflets import leaflet_billboard, leaflet_writers
 
@@ -140,6 +158,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         "treeform": __version__, "source": str(glb), "seed": int(seed),
         "leaflets": {"folder": "leaflets", "size": leaflet_size, "shape": "sphere", "leaves": leaflets.leaves},
         "color": {"faces": [f"color_{n}.png" for n in FACE_NAMES], "face_size": face, "order": "+X -X +Y -Y +Z -Z",
+                  "made_by": colors,
                   "cross": "color_cross.png", "front": "front.png"},
         "rdm": {"file": "rdm.npz", "resolution": rdm_resolution, "center": [round(float(c), 6) for c in center],
                 "mean_radius": round(rdm.mean_radius(), 6)},
