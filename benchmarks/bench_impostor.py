@@ -81,6 +81,9 @@ def _mesh_render(mesh, cam):
 
 
 def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = "synthesis") -> dict:
+    """(``colors`` 'planar': the synthesized cubemap plus the front view as a billboard, seed 001 §4.1.)"""
+    planar_colors = colors == "planar"
+    colors = "synthesis" if planar_colors else colors
     """Scores of the relief impostor against the full mesh of one tree (see the module's text)."""
     from treeform.structures.camera import box_camera
     from treeform.io.gltf import read_glb_mesh
@@ -99,7 +102,8 @@ def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = 
         for az in AZIMUTHS:
             cam = box_camera(lo, hi, az, ELEVATION, size)
             ma, a = supersampled(lambda c: _mesh_render(mesh, c), cam)
-            mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color), cam)
+            planar = imp.planar() if planar_colors else None
+            mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color, planar=planar), cam)
             union = ma | mb
             rows.append({"size": size, "azimuth": az, "iou": round(iou(mb, ma), 4),
                          "ssim": round(ssim(b, a, union), 4) if size >= 16 else None,
@@ -112,7 +116,8 @@ def main():
     ap.add_argument("--sizes", default="32,64,128,256")
     ap.add_argument("--trees", default="sample,oak,pine")
     ap.add_argument("--rdm", type=int, default=128, help="RDM face resolution")
-    ap.add_argument("--colors", default="synthesis,baked", help="colour cubemaps to score (make_impostor's colors)")
+    ap.add_argument("--colors", default="synthesis,planar,baked",
+                    help="colours to score: make_impostor's colors, or planar (the front view as a billboard)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the trees here (default: a temporary folder)")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]

@@ -33,6 +33,10 @@ def test_impostor_of_a_grown_tree(grown, gl):
     assert all(f.reshape(-1, 3).mean(0)[1] > f.reshape(-1, 3).mean(0)[2] for f in faces)  # leafy, every side
     manifest = json.loads((imp / "impostor.json").read_text())
     assert manifest["color"]["face_size"] == 64 and manifest["rdm"]["resolution"] == 32
+    # the front view's mapping for the planar colours: the crown centre lands inside the front view's tree
+    front = np.asarray(Image.open(imp / "front.png"))
+    u, v = (int(x) for x in manifest["front"]["center_px"])
+    assert manifest["front"]["pixels_per_metre"] > 0 and 0 <= u < front.shape[1] and 0 <= v < front.shape[0]
     # the RDM holds the whole tree (every vertex of the GLB, the thin trunk too) and is no bigger
     rdm = RadialDistanceMap.load(imp / "rdm.npz")
     verts, leaves = read_glb_geometry(grown / "tree.glb")

@@ -93,3 +93,28 @@ def test_baked_colours_are_the_meshs_own_on_every_side(gl, meshes):
     assert red[0].all() and blue[1].all()  # +X and -X faces
     with pytest.raises(InputError, match="nothing to bake"):
         bake_color_cubemap(Mesh([]), rdm)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 100.0, 200.0])
+def test_planar_colours_face_the_camera_from_every_side(gl, yaw):
+    """Seed 001 §4.1's second option: the front view as a billboard. A front view red left of the
+    crown centre and blue right of it gives red on the screen's left and blue on its right from any
+    side; the silhouette stays the RDM's."""
+    rdm = _bumpy_rdm()
+    front = np.zeros((64, 64, 4), np.uint8)
+    front[:, :32] = (255, 0, 0, 255)
+    front[:, 32:] = (0, 0, 255, 255)
+    planar = {"image": front, "center_px": (32.0, 32.0), "pixels_per_metre": 5.0}
+    cam = Camera(64, 64, 40.0, (0.5, 5.0, 12.0), tuple(rdm.center)).orbit(yaw_deg=yaw)
+    res = render_rdm_impostor(rdm, cam, planar=planar)
+    plain = render_rdm_impostor(rdm, cam)
+    assert np.array_equal(res.mask, plain.mask)
+    cu = cam.project(np.asarray(rdm.center)[None])[0, 0]
+    cols = np.nonzero(res.mask.any(0))[0]
+    left = res.mask & (np.arange(64)[None, :] < cu - 2)
+    right = res.mask & (np.arange(64)[None, :] > cu + 2)
+    assert len(cols) > 10 and left.any() and right.any()
+    img = res.color[..., :3].astype(int)
+    assert (img[left][:, 0] > img[left][:, 2]).all() and (img[right][:, 2] > img[right][:, 0]).all()
+    with pytest.raises(InputError, match="planar"):
+        render_rdm_impostor(rdm, cam, planar={"image": front[..., :3], "center_px": (0, 0), "pixels_per_metre": 1})

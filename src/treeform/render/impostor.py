@@ -48,6 +48,13 @@ uniform vec3 u_light;
 uniform int u_steps;
 uniform int u_refine;
 uniform float u_eps;
+uniform int u_planar;       // 1: colour from the front view as a billboard facing the camera (distant trees)
+uniform sampler2D u_front;  // the front view, RGBA (alpha: the tree)
+uniform vec3 u_right;       // the camera's right and up axes (world)
+uniform vec3 u_up;
+uniform vec2 u_front_px;    // the crown centre's pixel in the front view
+uniform vec2 u_front_size;  // the front view's size in pixels
+uniform float u_front_scale;  // its pixels per metre at the crown centre
 in vec3 v_world;
 layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_depth;
@@ -85,6 +92,12 @@ void main() {
     vec3 n = normalize(vec3(inside(p + e.xyy) - inside(p - e.xyy), inside(p + e.yxy) - inside(p - e.yxy),
                             inside(p + e.yyx) - inside(p - e.yyx)) + 1e-9);
     vec3 albedo = texture(u_color, p - u_center).rgb;
+    if (u_planar == 1) {  // seed 001 §4.1, second option: the same billboard texture from every direction
+        vec3 q = p - u_center;
+        vec2 px = u_front_px + u_front_scale * vec2(dot(q, u_right), -dot(q, u_up));
+        vec4 f = texture(u_front, px / u_front_size);
+        if (f.a > 0.5) albedo = f.rgb;
+    }
     float lit = 0.55 + 0.45 * max(dot(n, normalize(u_light)), 0.0);
     f_color = vec4(albedo * lit, 1.0);
     vec4 view = u_view * vec4(p, 1.0);
@@ -99,7 +112,7 @@ _BOX = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1
 
 
 def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
-                        light=(-0.4, 0.8, 0.5)) -> RenderResult:
+                        light=(-0.4, 0.8, 0.5), planar: dict | None = None) -> RenderResult:
     """Draw a radial distance map as a relief-mapped impostor from ``camera``.
 
     Parameters
@@ -113,6 +126,14 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         Samples of the linear search through the bounding box, then bisections.
     light : sequence of 3 floats
         Direction toward the light (world).
+    planar : dict, optional
+        The paper's second colour option, for distant trees: the front view used as a
+        billboard that faces the camera (sharper than the cubemap, but the same picture from
+        every side). ``{"image": (H, W, 4) uint8 with alpha = the tree, "center_px": (u, v),
+        the crown centre's pixel in it, "pixels_per_metre": scale at the crown centre}`` (what
+        ``treeform impostor`` records in ``impostor.json`` as ``front``).
+        Pixels where the billboard shows no tree keep the cubemap's colour; the silhouette is
+        the RDM's either way.
 
     Returns
     -------
@@ -131,6 +152,17 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
     if color is None:
         color = np.broadcast_to(np.array([60, 110, 45], np.uint8), (6, 4, 4, 3))
     color = np.ascontiguousarray(color, np.uint8)
+    front = None
+    if planar is not None:
+        try:
+            front = np.ascontiguousarray(planar["image"], np.uint8)
+            front_px = tuple(float(x) for x in planar["center_px"])
+            front_scale = float(planar["pixels_per_metre"])
+        except (KeyError, TypeError, ValueError):
+            raise InputError("planar: expected {'image', 'center_px', 'pixels_per_metre'}") from None
+        if front.ndim != 3 or front.shape[2] != 4 or len(front_px) != 2 or not front_scale > 0:
+            raise InputError(f"planar: expected an (H, W, 4) uint8 image, a (u, v) pixel and a scale > 0, "
+                             f"got {front.shape}, {front_px}, {front_scale}")
     if color.ndim != 4 or color.shape[0] != 6 or color.shape[1] != color.shape[2] or color.shape[3] != 3:
         raise InputError(f"color: expected (6, F, F, 3) uint8 faces, got {color.shape}")
     lo, hi = rdm.bounds()
@@ -150,6 +182,12 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         ctex = ctx.texture_cube((color.shape[1], color.shape[1]), 3, data=color.tobytes())
         ctex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         objs += [rtex, ctex]
+        # (a 1x1 stand-in without a front view: a sampler2D and the RDM's samplerCube may not share a unit)
+        fimg = front if front is not None else np.zeros((1, 1, 4), np.uint8)
+        ftex = ctx.texture((fimg.shape[1], fimg.shape[0]), 4, data=fimg.tobytes())
+        ftex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        ftex.repeat_x = ftex.repeat_y = False
+        objs.append(ftex)
         vbo = ctx.buffer(corners.tobytes())
         ibo = ctx.buffer(_BOX.tobytes())
         vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")], index_buffer=ibo, index_element_size=4)
@@ -177,6 +215,16 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         prog["u_color"].value = 1
         rtex.use(0)
         ctex.use(1)
+        prog["u_planar"].value = int(front is not None)
+        prog["u_front"].value = 2
+        ftex.use(2)
+        if front is not None:
+            right, up, _ = camera.axes()
+            prog["u_right"].value = tuple(float(x) for x in right)
+            prog["u_up"].value = tuple(float(x) for x in up)
+            prog["u_front_px"].value = front_px
+            prog["u_front_size"].value = (float(front.shape[1]), float(front.shape[0]))
+            prog["u_front_scale"].value = front_scale
         vao.render(moderngl.TRIANGLES)
         raw = fbo.read(components=4, attachment=0)
         draw = fbo.read(components=4, attachment=1, dtype="f4")

@@ -45,6 +45,11 @@ class Impostor:
     manifest: dict
     files: dict = field(default_factory=dict)
 
+    def planar(self) -> dict:
+        """The front view as :func:`~treeform.render.impostor.render_rdm_impostor`'s ``planar`` colour."""
+        f = self.manifest["front"]
+        return {"image": self.front, "center_px": f["center_px"], "pixels_per_metre": f["pixels_per_metre"]}
+
 
 IMPOSTOR_COLORS = ("synthesis", "baked")
 """How the colour cubemap is made: synthesized from the front view (seed 001 §3.3: a single photo's
@@ -119,6 +124,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         finally:
             renderer.release()
         front = np.dstack([res.color[..., :3], np.where(res.mask, 255, 0).astype(np.uint8)])
+        front_cam = cam
     with timer.stage("rdm"):
         from treeform.render import render_radial_cubemap
         from treeform.structures import RadialDistanceMap
@@ -150,6 +156,7 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
             color = bake_color_cubemap(mesh, rdm, face=face, view_size=view_size)
         else:
             color = color_cubemap(front, face=face, seed=seed)
+    uvz = front_cam.project(np.asarray(center)[None])[0]
     with timer.stage("leaflets"):
         from treeform.methods.envelope.leaflets import leaflet_billboard, leaflet_writers
 
@@ -162,6 +169,10 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
                   "cross": "color_cross.png", "front": "front.png"},
         "rdm": {"file": "rdm.npz", "resolution": rdm_resolution, "center": [round(float(c), 6) for c in center],
                 "mean_radius": round(rdm.mean_radius(), 6)},
+        # the front view as the relief impostor's planar colour (seed 001 §4.1, for distant trees):
+        # the crown centre's pixel and the view's scale there
+        "front": {"file": "front.png", "center_px": [round(float(x), 3) for x in uvz[:2]],
+                  "pixels_per_metre": round(float(front_cam.focal / uvz[2]), 6)},
     }
     result = Impostor(color, rdm, front, leaflets, manifest)
     if out_dir is not None:
