@@ -267,27 +267,27 @@ def coverage_mipmaps(rgba: np.ndarray, cutoff: float = 0.5) -> list:
     c = cutoff * 255.0
     target = float((rgba[..., 3] >= c).mean())
     out = [rgba]
-    cur = rgba.astype(np.float32)
-    while cur.shape[0] > 1 or cur.shape[1] > 1:
-        h, w = cur.shape[:2]
+    a = rgba[..., 3].astype(np.float32)
+    plain = rgba[..., :3].astype(np.float32)
+    prem = plain * a[..., None]  # colour weighted by alpha
+    while a.shape[0] > 1 or a.shape[1] > 1:
+        h, w = a.shape
         size = (max(1, w >> 1), max(1, h >> 1))
-        a = cv2.resize(np.ascontiguousarray(cur[..., 3]), size, interpolation=cv2.INTER_AREA)
-        wc = cv2.resize(np.ascontiguousarray(cur[..., :3] * cur[..., 3:4]), size, interpolation=cv2.INTER_AREA)
-        plain = cv2.resize(np.ascontiguousarray(cur[..., :3]), size, interpolation=cv2.INTER_AREA)
-        a3 = a.reshape(size[1], size[0], 1)
-        col = np.where(a3 > 1e-3, wc.reshape(a3.shape[:2] + (3,)) / np.maximum(a3, 1e-3),
-                       plain.reshape(a3.shape[:2] + (3,)))
-        cur = np.dstack([col, a])
-        lo, hi = 0.0, 64.0  # the scale whose test passes ``target`` of the texels (coverage grows with it)
-        for _ in range(24):
-            mid = 0.5 * (lo + hi)
-            if float((a * mid >= c).mean()) < target:
-                lo = mid
-            else:
-                hi = mid
-        k = hi if target > 0 else 1.0
-        level = np.dstack([col, np.minimum(a * k, 255.0)])
-        out.append(np.clip(np.rint(level), 0, 255).astype(np.uint8))
+        a = cv2.resize(a, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0])
+        prem = cv2.resize(prem, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], 3)
+        plain = cv2.resize(plain, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], 3)
+        # the scale whose test passes ``target`` of the texels: the one that lifts the m-th largest alpha to
+        # the cutoff (ties pass together, so at least ``target`` passes), at most 64
+        m = int(np.ceil(target * a.size - 1e-9))
+        k = 1.0
+        if m > 0:
+            t = float(np.partition(a.ravel(), a.size - m)[a.size - m])
+            k = min(c / t, 64.0) if t > 0 else 64.0
+        level = np.empty((size[1], size[0], 4), np.uint8)
+        level[..., :3] = np.clip(np.rint(np.where(a[..., None] > 1e-3, prem / np.maximum(a, 1e-3)[..., None], plain)),
+                                 0, 255)
+        level[..., 3] = np.clip(np.rint(a * k), 0, 255)
+        out.append(level)
     return out
 
 

@@ -7,53 +7,41 @@ are compiled and cached per variant by :mod:`treeform.render.gpu`.
 
 from __future__ import annotations
 
-_VERTEX = """
-#version 330
+# One vertex shader for both passes (``MASK_PASS`` picks the outputs): the depth pre-pass and the
+# shading pass then compute gl_Position from the same source, bit for bit.
+_VERTEX_BODY = """
 uniform mat4 u_view;
 uniform mat4 u_proj;
 in vec3 in_pos;
 in vec3 in_nrm;
 in vec2 in_uv;
 in vec4 in_col;
-out vec3 v_pos;
 out vec3 v_nrm;
 out vec2 v_uv;
-out vec4 v_col;
 out float v_depth;
+#if MASK_PASS
+out float v_alpha;
+#else
+out vec3 v_pos;
+out vec4 v_col;
+#endif
 invariant gl_Position;  // the depth pre-pass and the shading pass must agree bit for bit
 void main() {
     vec4 eye = u_view * vec4(in_pos, 1.0);
-    v_pos = in_pos;
     v_nrm = in_nrm;
     v_uv = in_uv;
-    v_col = in_col;
     v_depth = -eye.z;
-    gl_Position = u_proj * eye;
-}
-"""
-
-_VERTEX_MASK = """
-#version 330
-uniform mat4 u_view;
-uniform mat4 u_proj;
-in vec3 in_pos;
-in vec3 in_nrm;
-in vec2 in_uv;
-in vec4 in_col;
-out vec3 v_nrm;
-out vec2 v_uv;
-out float v_alpha;
-out float v_depth;
-invariant gl_Position;
-void main() {
-    vec4 eye = u_view * vec4(in_pos, 1.0);
-    v_nrm = in_nrm;
-    v_uv = in_uv;
+#if MASK_PASS
     v_alpha = in_col.a;
-    v_depth = -eye.z;
+#else
+    v_pos = in_pos;
+    v_col = in_col;
+#endif
     gl_Position = u_proj * eye;
 }
 """
+_VERTEX = "#version 330\n#define MASK_PASS 0\n" + _VERTEX_BODY
+_VERTEX_MASK = "#version 330\n#define MASK_PASS 1\n" + _VERTEX_BODY
 
 # Fragment shaders are compiled per variant (alpha mode, texture or not, flat-normal fallback,
 # normal map, shadows) so that OPAQUE parts have no ``discard`` (llvmpipe then tests depth
