@@ -1,4 +1,4 @@
-"""Impostor fidelity (issue 15 item 7): the relief-mapped RDM impostor against the full mesh.
+"""Impostor fidelity (issue 15 item 7): the relief-mapped RDM impostor and the clipped billboard cloud against the full mesh.
 
 Each tree (the bundled sample reconstructed by the envelope route; oak and pine grown by
 ``treeform grow``) gets its impostor (``make_impostor``: RDM + colour cubemap), and both the
@@ -8,7 +8,9 @@ from 8 azimuths (every 45°, 10° above the horizon) at several image sizes: the
 in pixels, i.e. how far away it stands. Both are drawn 4x larger and area-averaged down
 (what the eye sees at that distance: alpha-tested needles drawn at a few pixels vanish).
 Scores per view: silhouette IoU (coverage >= 1/2), and SSIM of the two pictures over a
-common grey background inside the union of the two silhouettes.
+common grey background inside the union of the two silhouettes. ``cloud`` scores the near-tree
+representation the same way: the clipped billboard cloud (144 leaflet billboards, seed 001 §4.2)
+over the impostor's ``wood.glb``.
 
 Run: `.venv/bin/python benchmarks/bench_impostor.py [--sizes 32,64,128,256] [--trees sample,oak,pine]`
 """
@@ -80,10 +82,26 @@ def _mesh_render(mesh, cam):
         r.release()
 
 
+def _cloud_render(imp, cam):
+    """The near-tree representation: the clipped billboard cloud (all 144 billboards) over ``wood.glb``."""
+    from treeform.render import Renderer
+    from treeform.render.cloud import CloudPass
+
+    cloud = CloudPass(imp.rdm, imp.cloud_points, imp.cloud_size, imp.leaflets, color=imp.color)
+    cloud.instances = [[0, 0, 0, 1, 0, len(imp.cloud_points)]]
+    r = Renderer(cam, samples=1, background=(0.0, 0.0, 0.0, 0.0))
+    try:
+        return r.render_scene([(imp.wood, None)], passes=[cloud])
+    finally:
+        r.release()
+        cloud.release()
+
+
 def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = "synthesis") -> dict:
-    """(``colors`` 'planar': the synthesized cubemap plus the front view as a billboard, seed 001 §4.1.)"""
-    planar_colors = colors == "planar"
-    colors = "synthesis" if planar_colors else colors
+    """(``colors`` 'planar': the synthesized cubemap plus the front view as a billboard, seed 001 §4.1;
+    'cloud': the clipped billboard cloud over the trunk and limbs, seed 001 §4.2.)"""
+    planar_colors, cloud = colors == "planar", colors == "cloud"
+    colors = "synthesis" if planar_colors or cloud else colors
     """Scores of the relief impostor against the full mesh of one tree (see the module's text)."""
     from treeform.structures.camera import box_camera
     from treeform.io.gltf import read_glb_mesh
@@ -103,7 +121,10 @@ def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = 
             cam = box_camera(lo, hi, az, ELEVATION, size)
             ma, a = supersampled(lambda c: _mesh_render(mesh, c), cam)
             planar = imp.planar() if planar_colors else None
-            mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color, planar=planar), cam)
+            if cloud:
+                mb, b = supersampled(lambda c: _cloud_render(imp, c), cam)
+            else:
+                mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color, planar=planar), cam)
             union = ma | mb
             rows.append({"size": size, "azimuth": az, "iou": round(iou(mb, ma), 4),
                          "ssim": round(ssim(b, a, union), 4) if size >= 16 else None,
@@ -116,8 +137,9 @@ def main():
     ap.add_argument("--sizes", default="32,64,128,256")
     ap.add_argument("--trees", default="sample,oak,pine")
     ap.add_argument("--rdm", type=int, default=128, help="RDM face resolution")
-    ap.add_argument("--colors", default="synthesis,planar,baked",
-                    help="colours to score: make_impostor's colors, or planar (the front view as a billboard)")
+    ap.add_argument("--colors", default="synthesis,planar,baked,cloud",
+                    help="what to score: the relief impostor with make_impostor's colors or planar (the front view "
+                         "as a billboard), or cloud (the clipped billboard cloud over the wood)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the trees here (default: a temporary folder)")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]

@@ -25,7 +25,8 @@ def test_impostor_of_a_grown_tree(grown, gl):
     imp = grown / "impostor"
     names = sorted(p.name for p in imp.iterdir())
     assert names == sorted([f"color_{n}.png" for n in ("px", "nx", "py", "ny", "pz", "nz")]
-                           + ["color_cross.png", "front.png", "impostor.json", "leaflets", "rdm.npz"])
+                           + ["cloud.npz", "color_cross.png", "front.png", "impostor.json", "leaflets", "rdm.npz",
+                              "wood.glb"])
     assert {p.name for p in (imp / "leaflets").iterdir()} >= {"rgba.png", "normal.png", "centroid.png", "ao.png",
                                                               "depth.png", "type.png", "leaflets.json"}
     faces = [np.asarray(Image.open(imp / f"color_{n}.png")) for n in ("px", "nx", "py", "ny", "pz", "nz")]
@@ -46,6 +47,17 @@ def test_impostor_of_a_grown_tree(grown, gl):
     assert rdm.radii.max() <= r.max() * (1 + 1e-5)
     assert np.median(rdm.radii[rdm.radii > 0]) < np.percentile(np.linalg.norm(leaves.reshape(-1, 3) - rdm.center,
                                                                               axis=1), 99)
+    # the billboard cloud: 144 centres inside the crown, on the tree's branches; the wood under a small budget
+    from treeform.methods.envelope.impostor import WOOD_TRIANGLES, read_impostor
+
+    back = read_impostor(grown)
+    assert back.cloud_points.shape == (144, 3) and back.cloud_size > 0 and manifest["cloud"]["from"] == "skeleton"
+    assert rdm.contains(back.cloud_points).all()
+    assert 0 < back.wood.n_triangles <= WOOD_TRIANGLES
+    assert back.leaflets.depth.dtype == np.uint16 and back.leaflets.rgba.shape == (256, 256, 4)
+    # the billboard centres sit among the leaves, not along the bare trunk below the crown
+    leaf_lo = leaves.reshape(-1, 3).min(0)
+    assert (back.cloud_points[:, 1] >= leaf_lo[1] - 1e-4).all()
     # same seed, same files
     proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1", "--out", grown / "again")
     assert proc.returncode == 0, proc.stderr
@@ -86,6 +98,52 @@ def test_impostor_bad_inputs(tmp_path, grown):
     assert_clean_failure(proc, tmp_path / "x")
     proc = cli("impostor", grown, "--face", "8", "--out", tmp_path / "y")
     assert_clean_failure(proc, tmp_path / "y")
+    for bad in ("200,40", "40", "a,b"):
+        proc = cli("impostor", grown, "--engine", bad, "--out", tmp_path / "z")
+        assert_clean_failure(proc, tmp_path / "z")
+        assert "engine" in proc.stderr
+
+
+def test_engine_levels(grown, gl, tmp_path):
+    """--engine: lod0 (the tree), lod1 (billboard cloud + wood), lod2 (six-view impostor cards) and lods.json;
+    each level much lighter than the one before; the cards show the tree from its sides; valid glTF."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    from treeform.io.gltf import read_glb, read_glb_counts, read_glb_mesh
+    from treeform.render import Renderer
+    from treeform.structures.camera import box_camera
+
+    out = tmp_path / "imp"
+    proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--engine", "40,200", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    eng = out / "engine"
+    assert sorted(p.name for p in eng.iterdir()) == ["lod0.glb", "lod1.glb", "lod2.glb", "lods.json"]
+    assert (eng / "lod0.glb").read_bytes() == (grown / "tree.glb").read_bytes()
+    levels = json.loads((eng / "lods.json").read_text())["levels"]
+    assert [(lv["from_m"], lv["to_m"]) for lv in levels] == [(0.0, 40.0), (40.0, 200.0), (200.0, None)]
+    tris = [read_glb_counts(eng / lv["file"])[1] for lv in levels]
+    assert tris == [lv["triangles"] for lv in levels]
+    assert tris[0] > 4 * tris[1] and tris[2] == 12
+    gltf, _ = read_glb(eng / "lod1.glb")
+    assert gltf["extensionsUsed"] == ["KHR_materials_unlit"]
+    assert [n["name"] for n in gltf["nodes"]][1] == "wood"
+    # the cards and the cloud cover about what the full tree covers, from two sides
+    full = read_glb_mesh(eng / "lod0.glb")
+    pts = np.concatenate([p.positions for p in full.parts])
+    for az in (0, 90):
+        cam = box_camera(pts.min(0), pts.max(0), az, 5, 96)
+        r = Renderer(cam, samples=1)
+        masks = [r.render(read_glb_mesh(eng / f"lod{k}.glb")).mask for k in range(3)]
+        for m in masks[1:]:
+            assert (m & masks[0]).sum() / (m | masks[0]).sum() > 0.5
+    validator = Path(__file__).resolve().parents[2] / "tools" / "gltf_validate.mjs"
+    if shutil.which("node") and (validator.parent / "node_modules" / "gltf-validator").is_dir():
+        for name in ("lod1.glb", "lod2.glb"):
+            rep = json.loads(subprocess.run(["node", str(validator), str(eng / name)], capture_output=True,
+                                            text=True, timeout=120).stdout)
+            assert rep["numErrors"] == 0 and rep["numWarnings"] == 0, rep["messages"]
 
 
 def test_reconstruct_writes_the_impostor_beside_the_tree(tmp_path, gl):

@@ -20,12 +20,25 @@ def impostor_cmd(
     colors: str = typer.Option("synthesis", "--colors", help="Colour cubemap: 'synthesis' (from the front view: all a "
                                "single photo shows) or 'baked' (the mesh's own colours from all round: a grown or "
                                "multi-view tree)."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Also write impostor/engine/: lod0.glb (full mesh), "
+                                         "lod1.glb (billboard cloud), lod2.glb (impostor cards) and lods.json, "
+                                         "switching at NEAR,FAR metres, e.g. 40,200."),
 ):
     """Synthesize the tree's colour cubemap from its front view (seamless over every cube edge) and its RDM."""
     from treeform.methods.envelope.impostor import IMPOSTOR_STAGES, make_impostor
 
+    from treeform.cli.app import _fail
+
+    switch = None
+    if engine is not None:
+        try:
+            switch = tuple(float(x) for x in engine.split(","))
+        except ValueError:
+            _fail(f"--engine: expected NEAR,FAR in metres, e.g. 40,200, got {engine!r}", 2)
+        if len(switch) != 2:
+            _fail(f"--engine: expected NEAR,FAR in metres, e.g. 40,200, got {engine!r}", 2)
     res = run_api(make_impostor, tree_dir, out=out, face=face, rdm_resolution=rdm_resolution, seed=seed,
-                  colors=colors, stages=IMPOSTOR_STAGES, inputs=[tree_dir])
+                  colors=colors, engine=switch, stages=IMPOSTOR_STAGES, inputs=[tree_dir])
     t = res.manifest["timings"]
     typer.echo(f"impostor of {tree_dir}: 6 colour faces of {face}² and an RDM of 6 x {rdm_resolution}² "
                f"(mean radius {res.rdm.mean_radius():.2f} m) in {sum(t.values()):.1f} s -> "

@@ -226,3 +226,76 @@ def rdm_front_height(rdm, camera, plane_distance: float, metres_per_pixel: float
     z = np.maximum(z, 0).reshape(gx.shape)
     full = ndi.zoom(z, (h / z.shape[0], w / z.shape[1]), order=1)[:h, :w]
     return np.pad(full, ((0, h - full.shape[0]), (0, w - full.shape[1])), mode="edge")
+
+
+def farthest_point_order(points: np.ndarray, n: int, *, first: int = 0) -> np.ndarray:
+    """Indices of ``n`` points picked by farthest-point sampling: every prefix is well spread.
+
+    Starts at ``first``; each next point is the one farthest from all picked so far (ties:
+    the lowest index), so the first k of the order cover the set about evenly for every k.
+
+    Examples
+    --------
+    >>> farthest_point_order(np.array([[0, 0, 0], [1, 0, 0], [10, 0, 0], [5, 0, 0.]]), 3).tolist()
+    [0, 2, 3]
+    """
+    pts = check_array(points, "points", ndim=2, min_size=1).astype(np.float64)
+    n = min(int(n), len(pts))
+    order = np.empty(n, np.int64)
+    dist = np.full(len(pts), np.inf)
+    k = int(first)
+    for i in range(n):
+        order[i] = k
+        dist = np.minimum(dist, np.einsum("ij,ij->i", pts - pts[k], pts - pts[k]))
+        k = int(np.argmax(dist))
+    return order
+
+
+def billboard_centres(rdm, nodes=None, n: int = 144, *, inner: float = 0.35, box=None, seed=None) -> np.ndarray:
+    """Centres of a crown's billboard cloud (seed 001 §4.2), ordered so every prefix is spread.
+
+    The centres are points of the branching structure (``nodes``, e.g. the tree's skeleton)
+    inside the crown (the RDM) and outside its core (beyond ``inner`` of the radius in their
+    direction: billboards deep inside are hidden); where the skeleton offers too few, points
+    of the RDM's shell (:func:`sample_rdm_shell`) fill up. The order is farthest-point, from
+    the highest point down, so drawing the first k of them (fewer far away) still covers the
+    crown.
+
+    Parameters
+    ----------
+    rdm : RadialDistanceMap
+    nodes : array_like, shape (N, 3), optional
+    n : int
+    inner : float
+        Relative radius of the excluded core.
+    box : (array_like (3,), array_like (3,)), optional
+        Keep only points inside this box (e.g. the leaves' bounds: the RDM also holds the
+        trunk, and billboards along it would hang below the crown).
+    seed : int or Generator, optional
+        For the subsample of a large skeleton and the shell points.
+
+    Returns
+    -------
+    ndarray, shape (n, 3), float32
+    """
+    rng = as_rng(seed)
+    n = int(n)
+    if n < 1:
+        raise InputError(f"n: expected a positive count, got {n}")
+    cand = np.zeros((0, 3))
+    if nodes is not None:
+        p = check_array(nodes, "nodes", shape=(None, 3)).astype(np.float64)
+        d = p - rdm.center
+        r = np.linalg.norm(d, axis=1)
+        big = rdm.lookup(d)
+        ok = (r <= big) & (r >= inner * big)
+        if box is not None:
+            ok &= np.all((p >= np.asarray(box[0])) & (p <= np.asarray(box[1])), axis=1)
+        cand = p[ok]
+        if len(cand) > 20 * n:
+            cand = cand[np.sort(rng.choice(len(cand), 20 * n, replace=False))]
+    if len(cand) < 4 * n:  # too few branch points: the crown's shell fills in
+        keep = None if box is None else (lambda q: np.all((q >= np.asarray(box[0])) & (q <= np.asarray(box[1])), axis=1))
+        cand = np.concatenate([cand, sample_rdm_shell(rdm, 4 * n - len(cand), keep=keep, seed=rng)])
+    order = farthest_point_order(cand, n, first=int(np.argmax(cand[:, 1])))
+    return cand[order].astype(np.float32)

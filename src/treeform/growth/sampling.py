@@ -13,9 +13,9 @@ from treeform._shared.rng import as_rng
 
 def blue_noise_points(contains: Callable[[np.ndarray], np.ndarray], bounds, n: int, *, seed=None,
                       oversample: float = 1.6, max_rounds: int = 6) -> np.ndarray:
-    """About ``n`` well-spread points inside a volume by stratified (jittered-grid) sampling.
+    """About ``n`` well-spread points inside a volume (or a plane region) by stratified (jittered-grid) sampling.
 
-    Candidates come from a jittered grid (one uniform point per cubic cell, about
+    Candidates come from a jittered grid (one uniform point per cell, about
     ``oversample × n`` inside the volume); then sample elimination in the spirit of
     Yuksel (2015) removes, in batches, one point of each closest pair until exactly
     ``n`` remain, which pushes the nearest-neighbour distances up to a Poisson-disk-like
@@ -24,16 +24,16 @@ def blue_noise_points(contains: Callable[[np.ndarray], np.ndarray], bounds, n: i
     Parameters
     ----------
     contains : callable
-        ``contains(points (N, 3)) -> (N,) bool``.
-    bounds : tuple of two array_like, shape (3,)
-        Axis-aligned box (min, max) enclosing the volume.
+        ``contains(points (N, D)) -> (N,) bool``.
+    bounds : tuple of two array_like, shape (D,)
+        Axis-aligned box (min, max) enclosing the volume; D = 3, or 2 for points in a plane.
     n : int
         Number of points wanted.
     seed : int or Generator, optional
 
     Returns
     -------
-    ndarray, shape (n, 3)
+    ndarray, shape (n, D)
         Fewer than ``n`` only if the volume is too small to hold them.
 
     Examples
@@ -41,9 +41,13 @@ def blue_noise_points(contains: Callable[[np.ndarray], np.ndarray], bounds, n: i
     >>> pts = blue_noise_points(lambda p: np.linalg.norm(p, axis=1) < 1, ([-1] * 3, [1] * 3), 500, seed=0)
     >>> pts.shape
     (500, 3)
+    >>> blue_noise_points(lambda p: np.ones(len(p), bool), ([0, 0], [100, 50]), 200, seed=0).shape
+    (200, 2)
     """
-    lo = check_array(bounds[0], "bounds[0]", shape=(3,)).astype(np.float64)
-    hi = check_array(bounds[1], "bounds[1]", shape=(3,)).astype(np.float64)
+    lo = check_array(bounds[0], "bounds[0]", ndim=1).astype(np.float64)
+    hi = check_array(bounds[1], "bounds[1]", shape=lo.shape).astype(np.float64)
+    if lo.shape[0] not in (2, 3):
+        raise InputError(f"bounds: expected 2 or 3 coordinates, got {lo.shape[0]}")
     if not np.all(hi > lo):
         raise InputError(f"bounds: expected min < max on every axis, got {lo} and {hi}")
     n = int(n)
@@ -52,14 +56,15 @@ def blue_noise_points(contains: Callable[[np.ndarray], np.ndarray], bounds, n: i
     rng = as_rng(seed)
     ext = hi - lo
     fraction = 1.0
-    pts = np.zeros((0, 3))
+    dim = lo.shape[0]
+    pts = np.zeros((0, dim))
     for _ in range(max_rounds):
         cells = oversample * n / max(fraction, 1e-3) * 1.1
-        cell = (np.prod(ext) / cells) ** (1 / 3)
+        cell = (np.prod(ext) / cells) ** (1 / dim)
         dims = np.maximum(1, np.ceil(ext / cell).astype(int))
         if np.prod(dims) > 5e7:
             raise InputError(f"n: {n} points in a volume this thin would need too many cells")
-        grid = np.stack(np.meshgrid(*(np.arange(d) for d in dims), indexing="ij"), -1).reshape(-1, 3)
+        grid = np.stack(np.meshgrid(*(np.arange(d) for d in dims), indexing="ij"), -1).reshape(-1, dim)
         cand = lo + (grid + rng.random(grid.shape)) * (ext / dims)
         inside = np.asarray(contains(cand), bool)
         pts = cand[inside]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 import json
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from treeform._shared.errors import InputError
 from treeform.io._atomic import atomic_path
 from treeform.structures.mesh import Material, Mesh, MeshPart
 
-__all__ = ["write_glb", "read_glb", "read_glb_counts", "read_glb_mesh", "read_glb_textures", "accessor_array"]
+__all__ = ["GlbNode", "write_glb", "write_glb_scene", "read_glb", "read_glb_counts", "read_glb_mesh", "read_glb_textures", "accessor_array"]
 
 _GLB_MAGIC = 0x46546C67  # b"glTF"
 _CHUNK_JSON = 0x4E4F534A  # b"JSON"
@@ -186,22 +187,65 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
     """
     if not isinstance(mesh, Mesh):
         raise InputError(f"mesh: expected a treeform Mesh, got {type(mesh).__name__}")
-    mesh.validate()
-    parts = [(i, p) for i, p in enumerate(mesh.parts) if p.n_vertices and p.n_triangles]
-    if not parts:
-        raise InputError("mesh: has no non-empty part (no triangles to write)")
+    return write_glb_scene([GlbNode(mesh)], path, generator=generator)
 
+
+@dataclass
+class GlbNode:
+    """One node of :func:`write_glb_scene`: a mesh, drawn once or once per instance.
+
+    ``instances``: (N, 6) rows ``x, y, z, scale, yaw, count`` (:mod:`treeform.render.instances`),
+    written with ``EXT_mesh_gpu_instancing`` (TRANSLATION, ROTATION about +Y, uniform SCALE);
+    ``unlit``: its materials get ``KHR_materials_unlit`` (colours baked in: billboards, impostor
+    cards); ``name``: the node's name (default the parts' names joined by '+').
+    """
+
+    mesh: Mesh
+    name: str | None = None
+    instances: np.ndarray | None = None
+    unlit: bool = False
+
+
+def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
+    """Write several meshes, each a node, drawn once or GPU-instanced, as one GLB, atomically.
+
+    Every node's mesh is written as :func:`write_glb` writes one mesh (one primitive per
+    non-empty part; materials and textures shared where the same objects are). Instanced
+    nodes carry ``EXT_mesh_gpu_instancing`` (listed in ``extensionsUsed`` and
+    ``extensionsRequired``: a viewer without it would draw one tree where a forest stands);
+    unlit nodes' materials ``KHR_materials_unlit``.
+
+    Parameters
+    ----------
+    nodes : sequence of GlbNode
+    path : str or path-like
+    generator : str
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        A node that is not a :class:`GlbNode`, a mesh without triangles, bad instances.
+    """
+    nodes = list(nodes)
+    if not nodes:
+        raise InputError("nodes: nothing to write")
     b = _BinBuilder()
     materials: list[dict] = []
-    material_index: dict[int, int] = {}
+    material_index: dict[tuple, int] = {}
     images: list[dict] = []
     textures: list[dict] = []
     texture_index: dict[int, int] = {}
-    primitives: list[dict] = []
+    meshes: list[dict] = []
+    gnodes: list[dict] = []
+    used: set = set()
 
-    def material_of(m: Material) -> int:
-        if id(m) in material_index:
-            return material_index[id(m)]
+    def material_of(m: Material, unlit: bool) -> int:
+        if (id(m), unlit) in material_index:
+            return material_index[(id(m), unlit)]
         pbr = {
             "baseColorFactor": [_clamp01(c) for c in m.base_color],
             "metallicFactor": _clamp01(m.metallic),
@@ -220,52 +264,87 @@ def write_glb(mesh: Mesh, path, *, generator: str = "treeform") -> Path:
             pbr["baseColorTexture"] = {"index": texture_of(m.texture, m.name), "texCoord": 0}
         mat = {"name": m.name, "pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode,
                "doubleSided": bool(m.double_sided)}
-        if m.normal_texture is not None:
+        if m.normal_texture is not None and not unlit:
             mat["normalTexture"] = {"index": texture_of(m.normal_texture, f"{m.name}_normal"), "texCoord": 0}
             if float(m.normal_scale) != 1.0:
                 mat["normalTexture"]["scale"] = float(m.normal_scale)
         if m.alpha_mode == "MASK":
             mat["alphaCutoff"] = max(float(m.alpha_cutoff), 0.0)
+        if unlit:
+            mat["extensions"] = {"KHR_materials_unlit": {}}
+            used.add("KHR_materials_unlit")
         materials.append(mat)
-        material_index[id(m)] = len(materials) - 1
-        return material_index[id(m)]
+        material_index[(id(m), unlit)] = len(materials) - 1
+        return material_index[(id(m), unlit)]
 
-    for i, p in parts:
-        _check_finite(p, i)
-        attributes = {
-            "POSITION": b.add_accessor(p.positions, _FLOAT, "VEC3", target=_ARRAY_BUFFER, min_max=True),
-            "NORMAL": b.add_accessor(_unit_normals(p.normals), _FLOAT, "VEC3", target=_ARRAY_BUFFER),
-            "TEXCOORD_0": b.add_accessor(p.uvs.astype(np.float32), _FLOAT, "VEC2", target=_ARRAY_BUFFER),
-        }
-        if p.material.normal_texture is not None and len(p.indices):
-            # with a normal map, the tangent space travels with the mesh (a client's generated one
-            # may differ: the Khronos validator warns)
-            attributes["TANGENT"] = b.add_accessor(
-                _vertex_tangents(p.positions, _unit_normals(p.normals), p.uvs, p.indices), _FLOAT, "VEC4",
-                target=_ARRAY_BUFFER)
-        if np.any(p.colors != 1.0):
-            colors = np.clip(p.colors, 0.0, 1.0).astype(np.float32)
-            attributes["COLOR_0"] = b.add_accessor(colors, _FLOAT, "VEC4", target=_ARRAY_BUFFER)
-        flat = p.indices.reshape(-1)
-        if int(flat.max()) < 65535:
-            idx = b.add_accessor(flat.astype("<u2"), _UNSIGNED_SHORT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
-        else:
-            idx = b.add_accessor(flat.astype("<u4"), _UNSIGNED_INT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
-        primitives.append({"attributes": attributes, "indices": idx, "material": material_of(p.material),
-                           "mode": _TRIANGLES, "extras": {"name": p.name}})
+    for k, node in enumerate(nodes):
+        if not isinstance(node, GlbNode):
+            raise InputError(f"nodes[{k}]: expected a GlbNode, got {type(node).__name__}")
+        mesh = node.mesh
+        if not isinstance(mesh, Mesh):
+            raise InputError(f"mesh: expected a treeform Mesh, got {type(mesh).__name__}")
+        mesh.validate()
+        parts = [(i, p) for i, p in enumerate(mesh.parts) if p.n_vertices and p.n_triangles]
+        if not parts:
+            raise InputError("mesh: has no non-empty part (no triangles to write)")
+        primitives: list[dict] = []
+        for i, p in parts:
+            _check_finite(p, i)
+            attributes = {
+                "POSITION": b.add_accessor(p.positions, _FLOAT, "VEC3", target=_ARRAY_BUFFER, min_max=True),
+                "NORMAL": b.add_accessor(_unit_normals(p.normals), _FLOAT, "VEC3", target=_ARRAY_BUFFER),
+                "TEXCOORD_0": b.add_accessor(p.uvs.astype(np.float32), _FLOAT, "VEC2", target=_ARRAY_BUFFER),
+            }
+            if p.material.normal_texture is not None and len(p.indices) and not node.unlit:
+                # with a normal map, the tangent space travels with the mesh (a client's generated one
+                # may differ: the Khronos validator warns)
+                attributes["TANGENT"] = b.add_accessor(
+                    _vertex_tangents(p.positions, _unit_normals(p.normals), p.uvs, p.indices), _FLOAT, "VEC4",
+                    target=_ARRAY_BUFFER)
+            if np.any(p.colors != 1.0):
+                colors = np.clip(p.colors, 0.0, 1.0).astype(np.float32)
+                attributes["COLOR_0"] = b.add_accessor(colors, _FLOAT, "VEC4", target=_ARRAY_BUFFER)
+            flat = p.indices.reshape(-1)
+            if int(flat.max()) < 65535:
+                idx = b.add_accessor(flat.astype("<u2"), _UNSIGNED_SHORT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
+            else:
+                idx = b.add_accessor(flat.astype("<u4"), _UNSIGNED_INT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
+            primitives.append({"attributes": attributes, "indices": idx, "material": material_of(p.material, node.unlit),
+                               "mode": _TRIANGLES, "extras": {"name": p.name}})
+        name = node.name if node.name is not None else "+".join(p.name for _, p in parts)
+        meshes.append({"name": name, "primitives": primitives})
+        gnode = {"name": name, "mesh": len(meshes) - 1}
+        if node.instances is not None:
+            from treeform.render.instances import check_instances
 
-    name = "+".join(p.name for _, p in parts)
+            inst = check_instances(node.instances, f"nodes[{k}].instances").astype(np.float64)
+            if not len(inst):
+                raise InputError(f"nodes[{k}].instances: no instances (leave the node out)")
+            half = 0.5 * inst[:, 4]
+            quat = np.stack([np.zeros(len(inst)), np.sin(half), np.zeros(len(inst)), np.cos(half)], 1)
+            gnode["extensions"] = {"EXT_mesh_gpu_instancing": {"attributes": {
+                "TRANSLATION": b.add_accessor(inst[:, :3].astype(np.float32), _FLOAT, "VEC3", target=None),
+                "ROTATION": b.add_accessor(quat.astype(np.float32), _FLOAT, "VEC4", target=None),
+                "SCALE": b.add_accessor(np.repeat(inst[:, 3:4], 3, 1).astype(np.float32), _FLOAT, "VEC3",
+                                        target=None)}}}
+            used.add("EXT_mesh_gpu_instancing")
+        gnodes.append(gnode)
+
     gltf: dict = {
         "asset": {"version": "2.0", "generator": str(generator)},
         "scene": 0,
-        "scenes": [{"name": "scene", "nodes": [0]}],
-        "nodes": [{"name": name, "mesh": 0}],
-        "meshes": [{"name": name, "primitives": primitives}],
+        "scenes": [{"name": "scene", "nodes": list(range(len(gnodes)))}],
+        "nodes": gnodes,
+        "meshes": meshes,
         "materials": materials,
         "accessors": b.accessors,
         "bufferViews": b.buffer_views,
         "buffers": [{"byteLength": b.length}],
     }
+    if used:
+        gltf["extensionsUsed"] = sorted(used)
+        if "EXT_mesh_gpu_instancing" in used:
+            gltf["extensionsRequired"] = ["EXT_mesh_gpu_instancing"]
     if textures:
         gltf["samplers"] = [{"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR,
                              "wrapS": _REPEAT, "wrapT": _REPEAT}]

@@ -15,7 +15,7 @@ import numpy as np
 
 from treeform._shared.errors import RenderError
 from treeform.render.context import get_context, on_release
-from treeform.render.shaders import _FRAGMENT, _FRAGMENT_MASK, _LAYOUT, _VERTEX, _VERTEX_MASK, _source
+from treeform.render.shaders import _FRAGMENT, _FRAGMENT_MASK, _LAYOUT, INSTANCE_FORMAT, _source, _vertex
 from treeform.structures.mesh import MeshPart
 
 __all__ = ["clear_cache"]
@@ -36,22 +36,24 @@ class _State:
         self.shadow = None
 
     def program(self, pass_: str, alpha_mode: int, has_tex: bool, flat: bool, has_ntex: bool = False,
-                shadows: bool = False, prepassed: bool = False):
+                shadows: bool = False, prepassed: bool = False, instanced: bool = False):
         """The (cached) program for one pass ("shade" or "mask") and material variant.
 
         ``prepassed``: the shading pass of a MASK part whose depth a pre-pass already wrote
         (depth test "==": no alpha test, so the rasterizer tests depth before shading).
+        ``instanced``: drawn once per instance (:data:`~treeform.render.shaders.INSTANCE_FORMAT`).
         """
         if pass_ == "mask":
             flat = has_ntex = shadows = prepassed = False
             has_tex = has_tex and alpha_mode != 0
         prepassed = bool(prepassed) and alpha_mode == 1
-        key = (pass_, alpha_mode, bool(has_tex), bool(flat), bool(has_ntex), bool(shadows), prepassed)
+        key = (pass_, alpha_mode, bool(has_tex), bool(flat), bool(has_ntex), bool(shadows), prepassed, bool(instanced))
         prog = self.programs.get(key)
         if prog is None:
-            vs, fs = (_VERTEX, _FRAGMENT) if pass_ == "shade" else (_VERTEX_MASK, _FRAGMENT_MASK)
+            fs = _FRAGMENT if pass_ == "shade" else _FRAGMENT_MASK
             try:
-                prog = self.ctx.program(vertex_shader=vs, fragment_shader=_source(fs, *key[1:]))
+                prog = self.ctx.program(vertex_shader=_vertex(pass_ != "shade", bool(instanced)),
+                                        fragment_shader=_source(fs, *key[1:7]))
             except Exception as exc:  # moderngl.Error: compile/link failure
                 raise RenderError(f"OpenGL shader compilation failed: {exc}") from None
             self.programs[key] = prog
@@ -158,7 +160,13 @@ class _PartGPU:
         self.ibo = ctx.buffer(np.ascontiguousarray(part.indices, np.uint32).tobytes())
         self.vaos: dict = {}
 
-    def vao(self, ctx, key, program):
+    def vao(self, ctx, key, program, instances=None):
+        """The part's vertex array for ``program``; with ``instances`` (a buffer of
+        :data:`~treeform.render.shaders.INSTANCE_FORMAT`) a new one the caller releases."""
+        if instances is not None:
+            fmt, names = _vao_format(program)
+            return ctx.vertex_array(program, [(self.vbo, fmt, *names), (instances, *INSTANCE_FORMAT)],
+                                    index_buffer=self.ibo, index_element_size=4)
         vao = self.vaos.get(key)
         if vao is None:
             fmt, names = _vao_format(program)
@@ -289,6 +297,30 @@ def coverage_mipmaps(rgba: np.ndarray, cutoff: float = 0.5) -> list:
         level[..., 3] = np.clip(np.rint(a * k), 0, 255)
         out.append(level)
     return out
+
+
+class GLResources:
+    """Base of the renderer's passes: the GL objects they made (``_objs``), freed by :meth:`release`."""
+
+    _objs: list
+
+    def release(self) -> None:
+        """Free the textures, buffers and program."""
+        for obj in reversed(getattr(self, "_objs", [])):
+            obj.release()
+        self._objs = []
+
+
+def _set(program, name, value):
+    """Set a uniform, skipping one the compiler optimised away; bytes are written raw (matrices)."""
+    try:
+        u = program[name]
+    except KeyError:  # optimised away
+        return
+    if isinstance(value, bytes):
+        u.write(value)
+    else:
+        u.value = value
 
 
 def _mat_bytes(m: np.ndarray) -> bytes:

@@ -7,6 +7,10 @@ direction, lights it with the normal of the RDM's surface (central differences o
 ``|p - c| - R(p - c)``) and writes that point's depth, so impostors and meshes occlude each
 other correctly. Fragments whose ray misses the crown are discarded: the silhouette from any
 direction is the RDM's.
+
+:class:`ReliefPass` draws any number of instances of one tree in one draw call (the box is
+turned and scaled per instance; each fragment marches in the tree's own frame), as a pass of
+:meth:`treeform.render.Renderer.render_scene`; :func:`render_rdm_impostor` draws one.
 """
 
 from __future__ import annotations
@@ -16,26 +20,32 @@ import numpy as np
 from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError, RenderError
 from treeform.render.context import get_context
-from treeform.render.gpu import _mat_bytes
+from treeform.render.gpu import GLResources, _mat_bytes, _set
+from treeform.render.instances import check_instances
 from treeform.render.result import RenderResult
+from treeform.render.shaders import YAW_GLSL
 from treeform.structures.camera import Camera
 
-__all__ = ["render_rdm_impostor"]
+__all__ = ["ReliefPass", "render_rdm_impostor"]
 
-_VS = """
-#version 330
+_VS = "#version 330\n" + YAW_GLSL + """
 uniform mat4 u_view;
 uniform mat4 u_proj;
-in vec3 in_pos;
-out vec3 v_world;
+in vec3 in_pos;     // a corner of the RDM's box, the tree's own frame
+in vec4 in_inst;    // x, y, z, scale
+in vec2 in_extra;   // yaw, (count: unused)
+out vec3 v_local;
+flat out vec4 v_inst;
+flat out float v_yaw;
 void main() {
-    v_world = in_pos;
-    gl_Position = u_proj * u_view * vec4(in_pos, 1.0);
+    v_local = in_pos;
+    v_inst = in_inst;
+    v_yaw = in_extra.x;
+    gl_Position = u_proj * u_view * vec4(yaw_rotate(in_pos * in_inst.w, in_extra.x) + in_inst.xyz, 1.0);
 }
 """
 
-_FS = """
-#version 330
+_FS = "#version 330\n" + YAW_GLSL + """
 uniform samplerCube u_rdm;
 uniform samplerCube u_color;
 uniform mat4 u_view;
@@ -44,10 +54,14 @@ uniform vec3 u_eye;
 uniform vec3 u_center;
 uniform vec3 u_lo;
 uniform vec3 u_hi;
-uniform vec3 u_light;
+uniform vec3 u_light;       // toward the key light (world), and the Lighting's colours
+uniform vec3 u_key;
+uniform vec3 u_sky;
+uniform vec3 u_ground;
 uniform int u_steps;
 uniform int u_refine;
 uniform float u_eps;
+uniform float u_id;         // written to the id buffer (part + 1)
 uniform int u_planar;       // 1: colour from the front view as a billboard facing the camera (distant trees)
 uniform sampler2D u_front;  // the front view, RGBA (alpha: the tree)
 uniform vec3 u_right;       // the camera's right and up axes (world)
@@ -55,20 +69,24 @@ uniform vec3 u_up;
 uniform vec2 u_front_px;    // the crown centre's pixel in the front view
 uniform vec2 u_front_size;  // the front view's size in pixels
 uniform float u_front_scale;  // its pixels per metre at the crown centre
-in vec3 v_world;
+in vec3 v_local;
+flat in vec4 v_inst;
+flat in float v_yaw;
 layout(location = 0) out vec4 f_color;
 layout(location = 1) out vec4 f_depth;
 
-float inside(vec3 p) {  // <= 0 inside the crown
+float inside(vec3 p) {  // <= 0 inside the crown (p in the tree's frame)
     vec3 d = p - u_center;
     return length(d) - texture(u_rdm, d).r;
 }
 
 void main() {
-    vec3 dir = normalize(v_world - u_eye);
+    // the ray in the tree's own frame (turned back, unscaled): the march is the same for every instance
+    vec3 eye = yaw_rotate((u_eye - v_inst.xyz) / v_inst.w, -v_yaw);
+    vec3 dir = normalize(v_local - eye);
     // the ray's span inside the box (slabs): from the eye (or the box's near side) to its far side
     vec3 inv = 1.0 / dir;
-    vec3 ta = (u_lo - u_eye) * inv, tb = (u_hi - u_eye) * inv;
+    vec3 ta = (u_lo - eye) * inv, tb = (u_hi - eye) * inv;
     vec3 tmin = min(ta, tb), tmax = max(ta, tb);
     float t0 = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
     float t1 = min(min(tmax.x, tmax.y), tmax.z);
@@ -78,32 +96,34 @@ void main() {
     float hit = -1.0;
     for (int i = 0; i <= u_steps; i++) {  // linear search
         float t = t0 + dt * float(i);
-        if (inside(u_eye + dir * t) <= 0.0) { hit = t; break; }
+        if (inside(eye + dir * t) <= 0.0) { hit = t; break; }
         prev = t;
     }
     if (hit < 0.0) discard;
     float a = prev, b = hit;
     for (int i = 0; i < u_refine; i++) {  // binary refinement between the last miss and the hit
         float m = 0.5 * (a + b);
-        if (inside(u_eye + dir * m) <= 0.0) b = m; else a = m;
+        if (inside(eye + dir * m) <= 0.0) b = m; else a = m;
     }
-    vec3 p = u_eye + dir * b;
+    vec3 p = eye + dir * b;
     vec3 e = vec3(u_eps, 0.0, 0.0);
     vec3 n = normalize(vec3(inside(p + e.xyy) - inside(p - e.xyy), inside(p + e.yxy) - inside(p - e.yxy),
                             inside(p + e.yyx) - inside(p - e.yyx)) + 1e-9);
     vec3 albedo = texture(u_color, p - u_center).rgb;
     if (u_planar == 1) {  // seed 001 §4.1, second option: the same billboard texture from every direction
         vec3 q = p - u_center;
-        vec2 px = u_front_px + u_front_scale * vec2(dot(q, u_right), -dot(q, u_up));
+        vec2 px = u_front_px + u_front_scale * vec2(dot(q, yaw_rotate(u_right, -v_yaw)),
+                                                    -dot(q, yaw_rotate(u_up, -v_yaw)));
         vec4 f = texture(u_front, px / u_front_size);
         if (f.a > 0.5) albedo = f.rgb;
     }
-    float lit = 0.55 + 0.45 * max(dot(n, normalize(u_light)), 0.0);
-    f_color = vec4(albedo * lit, 1.0);
-    vec4 view = u_view * vec4(p, 1.0);
+    vec3 nw = yaw_rotate(n, v_yaw);  // lit as the mesh renderer lights: hemisphere ambient + key light
+    vec3 lit = mix(u_ground, u_sky, 0.5 + 0.5 * nw.y) + u_key * max(dot(nw, normalize(u_light)), 0.0);
+    f_color = vec4(clamp(albedo * lit, 0.0, 1.0), 1.0);
+    vec4 view = u_view * vec4(yaw_rotate(p * v_inst.w, v_yaw) + v_inst.xyz, 1.0);
     vec4 clip = u_proj * view;
     gl_FragDepth = 0.5 * clip.z / clip.w + 0.5;
-    f_depth = vec4(-view.z, 1.0, 0.0, 1.0);
+    f_depth = vec4(-view.z, u_id, 0.0, 1.0);
 }
 """
 
@@ -111,8 +131,150 @@ _BOX = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1
                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
 
 
+def _check_lighting(lighting):
+    from treeform.render.lighting import Lighting
+
+    if lighting is None:
+        return Lighting()
+    if not isinstance(lighting, Lighting):
+        raise InputError(f"lighting: expected a Lighting, got {type(lighting).__name__}")
+    return lighting
+
+
+def _light_uniforms(lighting, camera: Camera) -> tuple:
+    """(name, vec3) pairs of the key light's world direction and the Lighting's colours."""
+    return (("u_light", lighting.world_direction(camera)), ("u_key", lighting.key), ("u_sky", lighting.sky),
+            ("u_ground", lighting.ground))
+
+
+class ReliefPass(GLResources):
+    """The relief-mapped RDM of one tree, drawn for many instances in one draw call.
+
+    A pass of :meth:`treeform.render.Renderer.render_scene`: set :attr:`instances` (rows
+    ``(x, y, z, scale, yaw, count)``, :mod:`treeform.render.instances`), then the renderer calls
+    the pass. GPU textures live until :meth:`release`.
+
+    Parameters
+    ----------
+    rdm : RadialDistanceMap
+        In the tree's own frame.
+    color, steps, refine, lighting, planar :
+        As :func:`render_rdm_impostor`.
+    part_id : int
+        Reported as the part index of the impostor's pixels (:attr:`RenderResult.part`).
+    """
+
+    name = "relief"
+
+    def __init__(self, rdm, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
+                 lighting=None, planar: dict | None = None, part_id: int = 0):
+        import moderngl
+
+        from treeform.structures import RadialDistanceMap
+
+        if not isinstance(rdm, RadialDistanceMap):
+            raise InputError(f"rdm: expected a RadialDistanceMap, got {type(rdm).__name__}")
+        self.steps = check_int(steps, "steps", 4, 4096)
+        self.refine = check_int(refine, "refine", 0, 32)
+        if color is None:
+            color = np.broadcast_to(np.array([60, 110, 45], np.uint8), (6, 4, 4, 3))
+        color = np.ascontiguousarray(color, np.uint8)
+        front = None
+        if planar is not None:
+            try:
+                front = np.ascontiguousarray(planar["image"], np.uint8)
+                self._front_px = tuple(float(x) for x in planar["center_px"])
+                self._front_scale = float(planar["pixels_per_metre"])
+            except (KeyError, TypeError, ValueError):
+                raise InputError("planar: expected {'image', 'center_px', 'pixels_per_metre'}") from None
+            if front.ndim != 3 or front.shape[2] != 4 or len(self._front_px) != 2 or not self._front_scale > 0:
+                raise InputError(f"planar: expected an (H, W, 4) uint8 image, a (u, v) pixel and a scale > 0, "
+                                 f"got {front.shape}, {self._front_px}, {self._front_scale}")
+        if color.ndim != 4 or color.shape[0] != 6 or color.shape[1] != color.shape[2] or color.shape[3] != 3:
+            raise InputError(f"color: expected (6, F, F, 3) uint8 faces, got {color.shape}")
+        self.rdm = rdm
+        self.lighting = _check_lighting(lighting)
+        self.part_id = int(part_id)
+        self.front = front
+        self.instances = np.zeros((0, 6), np.float32)
+        lo, hi = rdm.bounds()
+        pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
+        self.lo, self.hi = lo - pad, hi + pad
+        corners = np.array([[x, y, z] for x in (self.lo[0], self.hi[0]) for y in (self.lo[1], self.hi[1])
+                            for z in (self.lo[2], self.hi[2])], np.float32)
+        self.ctx = ctx = get_context()
+        res = rdm.resolution
+        self._objs = []
+        try:
+            self.prog = ctx.program(vertex_shader=_VS, fragment_shader=_FS)
+            self._objs.append(self.prog)
+            self.rtex = ctx.texture_cube((res, res), 1, data=np.ascontiguousarray(rdm.radii, np.float32).tobytes(),
+                                         dtype="f4")
+            self.rtex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.ctex = ctx.texture_cube((color.shape[1], color.shape[1]), 3, data=color.tobytes())
+            self.ctex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self._objs += [self.rtex, self.ctex]
+            # (a 1x1 stand-in without a front view: a sampler2D and the RDM's samplerCube may not share a unit)
+            fimg = front if front is not None else np.zeros((1, 1, 4), np.uint8)
+            self.ftex = ctx.texture((fimg.shape[1], fimg.shape[0]), 4, data=fimg.tobytes())
+            self.ftex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.ftex.repeat_x = self.ftex.repeat_y = False
+            self.vbo = ctx.buffer(corners.tobytes())
+            self.ibo = ctx.buffer(_BOX.tobytes())
+            self._objs += [self.ftex, self.vbo, self.ibo]
+        except moderngl.Error as exc:
+            self.release()
+            raise RenderError(f"OpenGL impostor set-up failed: {exc}") from None
+
+    def __call__(self, ctx, camera: Camera) -> None:
+        import moderngl
+
+        from treeform.render.shaders import INSTANCE_FORMAT
+
+        inst = check_instances(self.instances)
+        if not len(inst):
+            return
+        prog = self.prog
+        ibuf = ctx.buffer(inst.tobytes())
+        vao = ctx.vertex_array(prog, [(self.vbo, "3f", "in_pos"), (ibuf, *INSTANCE_FORMAT)],
+                               index_buffer=self.ibo, index_element_size=4)
+        try:
+            ctx.enable(moderngl.CULL_FACE)
+            ctx.cull_face = "front"  # the box's far faces: every ray through the box gets a fragment, eye inside or not
+            _set(prog, "u_view", _mat_bytes(camera.view_matrix()))
+            _set(prog, "u_proj", _mat_bytes(camera.projection_matrix()))
+            for name, value in (("u_eye", camera.position), ("u_center", self.rdm.center), ("u_lo", self.lo),
+                                ("u_hi", self.hi), *_light_uniforms(self.lighting, camera)):
+                _set(prog, name, tuple(float(x) for x in value))
+            _set(prog, "u_steps", self.steps)
+            _set(prog, "u_refine", self.refine)
+            _set(prog, "u_eps", float(0.5 * np.max(self.hi - self.lo) / self.rdm.resolution))
+            _set(prog, "u_id", float(self.part_id + 1))
+            _set(prog, "u_rdm", 0)
+            _set(prog, "u_color", 1)
+            _set(prog, "u_front", 2)
+            self.rtex.use(0)
+            self.ctex.use(1)
+            self.ftex.use(2)
+            _set(prog, "u_planar", int(self.front is not None))
+            if self.front is not None:
+                right, up, _ = camera.axes()
+                _set(prog, "u_right", tuple(float(x) for x in right))
+                _set(prog, "u_up", tuple(float(x) for x in up))
+                _set(prog, "u_front_px", self._front_px)
+                _set(prog, "u_front_size", (float(self.front.shape[1]), float(self.front.shape[0])))
+                _set(prog, "u_front_scale", self._front_scale)
+            vao.render(moderngl.TRIANGLES, instances=len(inst))
+        finally:
+            ctx.cull_face = "back"
+            ctx.disable(moderngl.CULL_FACE)
+            vao.release()
+            ibuf.release()
+
+
+
 def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
-                        light=(-0.4, 0.8, 0.5), planar: dict | None = None) -> RenderResult:
+                        lighting=None, planar: dict | None = None, instances=None) -> RenderResult:
     """Draw a radial distance map as a relief-mapped impostor from ``camera``.
 
     Parameters
@@ -124,8 +286,9 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         the RDM's order and orientation; default a flat green.
     steps, refine : int
         Samples of the linear search through the bounding box, then bisections.
-    light : sequence of 3 floats
-        Direction toward the light (world).
+    lighting : Lighting, optional
+        Hemisphere ambient plus the key light, as the mesh renderer lights meshes (default
+        ``Lighting()``, the renderer's default), with the RDM's normal.
     planar : dict, optional
         The paper's second colour option, for distant trees: the front view used as a
         billboard that faces the camera (sharper than the cubemap, but the same picture from
@@ -134,6 +297,8 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         ``treeform impostor`` records in ``impostor.json`` as ``front``).
         Pixels where the billboard shows no tree keep the cubemap's colour; the silhouette is
         the RDM's either way.
+    instances : array_like, shape (N, 6), optional
+        Placements (:mod:`treeform.render.instances`); default one, where the RDM is.
 
     Returns
     -------
@@ -141,103 +306,15 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         ``color`` RGBA (alpha 255 on the crown), ``mask``, ``depth`` (metres along the view
         axis, inf off the crown), ``camera``.
     """
-    import moderngl
+    from treeform.render.renderer import Renderer
 
-    from treeform.structures import RadialDistanceMap
-
-    if not isinstance(rdm, RadialDistanceMap):
-        raise InputError(f"rdm: expected a RadialDistanceMap, got {type(rdm).__name__}")
-    steps = check_int(steps, "steps", 4, 4096)
-    refine = check_int(refine, "refine", 0, 32)
-    if color is None:
-        color = np.broadcast_to(np.array([60, 110, 45], np.uint8), (6, 4, 4, 3))
-    color = np.ascontiguousarray(color, np.uint8)
-    front = None
-    if planar is not None:
-        try:
-            front = np.ascontiguousarray(planar["image"], np.uint8)
-            front_px = tuple(float(x) for x in planar["center_px"])
-            front_scale = float(planar["pixels_per_metre"])
-        except (KeyError, TypeError, ValueError):
-            raise InputError("planar: expected {'image', 'center_px', 'pixels_per_metre'}") from None
-        if front.ndim != 3 or front.shape[2] != 4 or len(front_px) != 2 or not front_scale > 0:
-            raise InputError(f"planar: expected an (H, W, 4) uint8 image, a (u, v) pixel and a scale > 0, "
-                             f"got {front.shape}, {front_px}, {front_scale}")
-    if color.ndim != 4 or color.shape[0] != 6 or color.shape[1] != color.shape[2] or color.shape[3] != 3:
-        raise InputError(f"color: expected (6, F, F, 3) uint8 faces, got {color.shape}")
-    lo, hi = rdm.bounds()
-    pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
-    lo, hi = lo - pad, hi + pad
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])],
-                       np.float32)
-    ctx = get_context()
-    w, h = int(camera.width), int(camera.height)
-    res = rdm.resolution
-    objs = []
+    if not isinstance(camera, Camera):
+        raise InputError(f"camera: expected a treeform Camera, got {type(camera).__name__}")
+    relief = ReliefPass(rdm, color=color, steps=steps, refine=refine, lighting=lighting, planar=planar)
+    renderer = Renderer(camera, samples=1, background=(0.0, 0.0, 0.0, 0.0))
     try:
-        prog = ctx.program(vertex_shader=_VS, fragment_shader=_FS)
-        objs.append(prog)
-        rtex = ctx.texture_cube((res, res), 1, data=np.ascontiguousarray(rdm.radii, np.float32).tobytes(), dtype="f4")
-        rtex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        ctex = ctx.texture_cube((color.shape[1], color.shape[1]), 3, data=color.tobytes())
-        ctex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        objs += [rtex, ctex]
-        # (a 1x1 stand-in without a front view: a sampler2D and the RDM's samplerCube may not share a unit)
-        fimg = front if front is not None else np.zeros((1, 1, 4), np.uint8)
-        ftex = ctx.texture((fimg.shape[1], fimg.shape[0]), 4, data=fimg.tobytes())
-        ftex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        ftex.repeat_x = ftex.repeat_y = False
-        objs.append(ftex)
-        vbo = ctx.buffer(corners.tobytes())
-        ibo = ctx.buffer(_BOX.tobytes())
-        vao = ctx.vertex_array(prog, [(vbo, "3f", "in_pos")], index_buffer=ibo, index_element_size=4)
-        objs += [vbo, ibo, vao]
-        col_rb = ctx.renderbuffer((w, h), 4)
-        dep_rb = ctx.renderbuffer((w, h), 4, dtype="f4")
-        zbuf = ctx.depth_renderbuffer((w, h))
-        fbo = ctx.framebuffer([col_rb, dep_rb], zbuf)
-        objs += [col_rb, dep_rb, zbuf, fbo]
-        fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable_only(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        ctx.cull_face = "front"  # the box's far faces: every ray through the box gets a fragment, eye inside or not
-        for name, value in (("u_view", _mat_bytes(camera.view_matrix())), ("u_proj", _mat_bytes(camera.projection_matrix()))):
-            prog[name].write(value)
-        prog["u_eye"].value = tuple(float(x) for x in camera.position)
-        prog["u_center"].value = tuple(float(x) for x in rdm.center)
-        prog["u_lo"].value = tuple(float(x) for x in lo)
-        prog["u_hi"].value = tuple(float(x) for x in hi)
-        prog["u_light"].value = tuple(float(x) for x in light)
-        prog["u_steps"].value = steps
-        prog["u_refine"].value = refine
-        prog["u_eps"].value = float(0.5 * np.max(hi - lo) / res)
-        prog["u_rdm"].value = 0
-        prog["u_color"].value = 1
-        rtex.use(0)
-        ctex.use(1)
-        prog["u_planar"].value = int(front is not None)
-        prog["u_front"].value = 2
-        ftex.use(2)
-        if front is not None:
-            right, up, _ = camera.axes()
-            prog["u_right"].value = tuple(float(x) for x in right)
-            prog["u_up"].value = tuple(float(x) for x in up)
-            prog["u_front_px"].value = front_px
-            prog["u_front_size"].value = (float(front.shape[1]), float(front.shape[0]))
-            prog["u_front_scale"].value = front_scale
-        vao.render(moderngl.TRIANGLES)
-        raw = fbo.read(components=4, attachment=0)
-        draw = fbo.read(components=4, attachment=1, dtype="f4")
-    except moderngl.Error as exc:
-        raise RenderError(f"OpenGL impostor render failed: {exc}") from None
+        relief.instances = [[0, 0, 0, 1, 0, 0]] if instances is None else instances
+        return renderer.render_scene([], passes=[relief])
     finally:
-        ctx.cull_face = "back"
-        ctx.enable_only(moderngl.NOTHING)
-        for obj in reversed(objs):
-            obj.release()
-    rgba = np.frombuffer(raw, np.uint8).reshape(h, w, 4)[::-1].copy()
-    dd = np.frombuffer(draw, np.float32).reshape(h, w, 4)[::-1]
-    mask = dd[..., 1] > 0.5
-    depth = np.where(mask, dd[..., 0], np.float32(np.inf)).astype(np.float32)
-    rgba[~mask] = 0
-    return RenderResult(color=rgba, mask=mask, depth=depth, camera=camera)
+        renderer.release()
+        relief.release()

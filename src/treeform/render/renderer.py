@@ -29,7 +29,7 @@ import numpy as np
 
 from treeform._shared.checks import check_choice
 from treeform._shared.errors import InputError, RenderError
-from treeform.render.gpu import _get_state, _mat_bytes, _part_gpu, _texture_gpu, clear_cache
+from treeform.render.gpu import _get_state, _mat_bytes, _part_gpu, _set, _texture_gpu, clear_cache
 from treeform.render.lighting import MAX_LIGHTS, Lighting
 from treeform.render.result import RenderResult, _unpremultiply, to_uint8_rgb
 from treeform.render.shaders import _ALPHA_MODES
@@ -55,17 +55,6 @@ def _check_rgba(value, name) -> tuple:
     if len(v) != 4 or not all(0.0 <= x <= 1.0 for x in v):
         raise InputError(f"{name}: expected 4 floats in [0, 1], got {value!r}")
     return v
-
-
-def _set(program, name, value):
-    try:
-        u = program[name]
-    except KeyError:  # optimised away
-        return
-    if isinstance(value, bytes):
-        u.write(value)
-    else:
-        u.value = value
 
 
 class Renderer:
@@ -190,21 +179,65 @@ class Renderer:
         self._release_targets()
 
     # -- rendering ------------------------------------------------------------------------
-    def render(self, mesh: Mesh) -> RenderResult:
+    def render(self, mesh: Mesh, instances=None, *, passes=(), stats: dict | None = None) -> RenderResult:
         """Render ``mesh`` (or a single :class:`MeshPart`) from :attr:`camera`.
 
         Parameters
         ----------
         mesh : Mesh or MeshPart
+        instances : array_like, shape (N, 6), optional
+            Draw the mesh once per row (:func:`~treeform.render.instances.check_instances`):
+            a forest of one tree in one draw call per part.
+        passes, stats :
+            As :meth:`render_scene`.
 
         Returns
         -------
         RenderResult
             ``color`` (H, W, 4) uint8, ``mask`` (H, W) bool, ``depth`` (H, W) float32.
         """
+        return self.render_scene([(mesh, instances)], passes=passes, stats=stats)
+
+    def render_scene(self, items, *, passes=(), stats: dict | None = None) -> RenderResult:
+        """Render several meshes, each drawn once or once per instance, into one image.
+
+        Parameters
+        ----------
+        items : sequence of (Mesh or MeshPart, instances or None)
+            ``instances``: (N, 6) rows ``(x, y, z, scale, yaw, count)``
+            (:func:`~treeform.render.instances.check_instances`); parts are numbered over all
+            items in order (:attr:`RenderResult.part`). Instanced items cast no shadows: the
+            key light's shadow map is drawn only when no item is instanced.
+        passes : sequence of callables, optional
+            ``draw(ctx, camera)`` each, called after the opaque and alpha-tested parts, into
+            the same framebuffer with the depth test on (e.g. relief impostors and billboard
+            clouds, e.g. ``treeform forest``). A pass writes location 0 = premultiplied
+            colour and location 1 = (view depth, id, 0, 1). Only with ``samples <= 1``.
+        stats : dict, optional
+            Filled with milliseconds per step, measured with ``glFinish`` between steps:
+            ``meshes`` (opaque and alpha-tested parts), one entry per pass (its ``name``
+            attribute, else ``pass<k>``), ``blend``, ``draw`` (all of these) and ``read``.
+
+        Returns
+        -------
+        RenderResult
+        """
+        import time
+
         import moderngl
 
-        mesh = _as_mesh(mesh)
+        from treeform.render.instances import check_instances
+
+        if passes and self.samples > 1:
+            raise InputError("passes: only with samples <= 1 (they draw into the single-sample framebuffer)")
+        scene = []
+        for k, item in enumerate(items):
+            try:
+                m, inst = item
+            except (TypeError, ValueError):
+                raise InputError(f"items[{k}]: expected a (mesh, instances or None) pair") from None
+            scene.append((_as_mesh(m), None if inst is None else check_instances(inst, f"items[{k}] instances")))
+        mesh = Mesh([p for m, _ in scene for p in m.parts])
         state = _get_state()
         if state is not self._state:  # context was re-created
             self._state = state
@@ -216,17 +249,35 @@ class Renderer:
         cam = self._camera
         w, h = self._size
 
-        parts = [(i, p) for i, p in enumerate(mesh.parts) if p.n_triangles]
-        for _i, p in parts:
+        parts, i = [], 0
+        for m, inst in scene:
+            for p in m.parts:
+                if p.n_triangles and (inst is None or len(inst)):
+                    parts.append((i, p, inst))
+                i += 1
+        for _i, p, _inst in parts:
             p.validate()
         parts.sort(key=lambda ip: ip[1].material.alpha_mode == "BLEND")  # stable: opaque first
+        inst_bufs: dict = {}  # one GPU buffer per instance array
+        temp = []  # vertex arrays and buffers of this call
+        try:
+            for _i, _p, inst in parts:
+                if inst is not None and id(inst) not in inst_bufs:
+                    inst_bufs[id(inst)] = ctx.buffer(inst.tobytes())
+                    temp.append(inst_bufs[id(inst)])
+        except moderngl.Error as exc:
+            for obj in temp:
+                obj.release()
+            raise RenderError(f"OpenGL render failed: {exc}") from None
         gpu = [(i, p, _part_gpu(state, p), _texture_gpu(state, p.material.texture),
-                _texture_gpu(state, p.material.normal_texture) if p.material.normal_texture is not None else None)
-               for i, p in parts]
+                _texture_gpu(state, p.material.normal_texture) if p.material.normal_texture is not None else None,
+                inst)
+               for i, p, inst in parts]
 
         lt = self.lighting
         dirs, cols = lt.world_lights(cam)
-        shadows = lt.shadow > 0 and lt.key != (0.0, 0.0, 0.0) and bool(gpu)
+        shadows = (lt.shadow > 0 and lt.key != (0.0, 0.0, 0.0) and bool(gpu)
+                   and all(inst is None for _m, inst in scene))
         shared = {
             "u_view": _mat_bytes(cam.view_matrix()),
             "u_proj": _mat_bytes(cam.projection_matrix()),
@@ -253,13 +304,13 @@ class Renderer:
         prepared: set = set()
 
         def draw(pass_: str, blend: bool, overrides: dict | None = None, only=None, prepassed: bool = False):
-            for i, p, g, tex, ntex in gpu:
+            for i, p, g, tex, ntex, inst in gpu:
                 m = p.material
                 mode = _ALPHA_MODES[m.alpha_mode]
                 if only is not None and (mode == 2) != (only == "blend"):
                     continue
                 key, program = state.program(pass_, mode, m.texture is not None, g.flat, ntex is not None,
-                                             shadows, prepassed)
+                                             shadows, prepassed, inst is not None)
                 if overrides is not None:  # shadow pass: the light's matrices, not cached as prepared
                     for name, value in overrides.items():
                         _set(program, name, value)
@@ -284,8 +335,26 @@ class Renderer:
                     if ntex is not None:
                         ntex.use(1)
                 tex.use(0)
-                g.vao(ctx, key, program).render(moderngl.TRIANGLES)
+                if inst is None:
+                    g.vao(ctx, key, program).render(moderngl.TRIANGLES)
+                else:
+                    vao = g.vao(ctx, key, program, inst_bufs[id(inst)])
+                    temp.append(vao)
+                    vao.render(moderngl.TRIANGLES, instances=len(inst))
 
+        clock = [time.perf_counter()]
+
+        def lap(name: str) -> None:
+            if stats is not None:
+                ctx.finish()
+                now = time.perf_counter()
+                stats[name] = stats.get(name, 0.0) + 1e3 * (now - clock[0])
+                clock[0] = now
+
+        if stats is not None:
+            stats.clear()
+            ctx.finish()
+            clock[0] = time.perf_counter()
         try:
             if shadows:  # key light's depth map, alpha-tested like the mask, both faces drawn
                 smap, sfbo = state.shadow_target(lt.shadow_resolution)
@@ -311,8 +380,18 @@ class Renderer:
                 ctx.depth_func = "<"
             else:
                 draw("shade", True, only="solid")
+            lap("meshes")
+            fbo.use()
+            for k, pass_draw in enumerate(passes):
+                ctx.enable_only(moderngl.DEPTH_TEST)
+                ctx.depth_func = "<"
+                pass_draw(ctx, cam)
+                lap(getattr(pass_draw, "name", f"pass{k}"))
             fbo.use()
             draw("shade", True, only="blend")
+            lap("blend")
+            if stats is not None:
+                stats["draw"] = sum(v for k, v in stats.items() if k not in ("draw", "read"))
             if self.samples > 1:
                 ctx.copy_framebuffer(t["resolve_fbo"], fbo)
                 raw = t["resolve_fbo"].read(components=4)
@@ -328,10 +407,14 @@ class Renderer:
             ids_raw = buffers.read(components=4, dtype="f4", attachment=first)
             aux_raw = ([buffers.read(components=4, dtype="f4", attachment=first + k) for k in (1, 2)]
                        if self.aux else None)
+            lap("read")
         except moderngl.Error as exc:
             raise RenderError(f"OpenGL render failed: {exc}") from None
         finally:
             ctx.enable_only(moderngl.NOTHING)
+            ctx.depth_func = "<"
+            for obj in reversed(temp):
+                obj.release()
 
         color = np.frombuffer(raw, np.uint8).reshape(h, w, 4)[::-1]
         color = _unpremultiply(color, self.background)

@@ -7,11 +7,28 @@ are compiled and cached per variant by :mod:`treeform.render.gpu`.
 
 from __future__ import annotations
 
+# Instances (forests): each instance is (x, y, z, scale) and (yaw, count); a model point p is
+# drawn at yaw_rotate(p * scale, yaw) + (x, y, z): turned about +Y, then moved (Y up, metres).
+# ``count`` is for passes that draw a prefix of their points per instance (billboard clouds).
+YAW_GLSL = """
+vec3 yaw_rotate(vec3 v, float yaw) {
+    float c = cos(yaw), s = sin(yaw);
+    return vec3(c * v.x + s * v.z, v.y, -s * v.x + c * v.z);
+}
+"""
+INSTANCE_FORMAT = ("4f 2f/i", "in_inst", "in_extra")
+"""moderngl buffer format and attribute names of the per-instance data, 24 bytes an instance."""
+
 # One vertex shader for both passes (``MASK_PASS`` picks the outputs): the depth pre-pass and the
-# shading pass then compute gl_Position from the same source, bit for bit.
-_VERTEX_BODY = """
+# shading pass then compute gl_Position from the same source, bit for bit. ``INSTANCED`` draws
+# the part once per instance (:data:`INSTANCE_FORMAT`).
+_VERTEX_BODY = YAW_GLSL + """
 uniform mat4 u_view;
 uniform mat4 u_proj;
+#if INSTANCED
+in vec4 in_inst;
+in vec2 in_extra;
+#endif
 in vec3 in_pos;
 in vec3 in_nrm;
 in vec2 in_uv;
@@ -27,21 +44,30 @@ out vec4 v_col;
 #endif
 invariant gl_Position;  // the depth pre-pass and the shading pass must agree bit for bit
 void main() {
-    vec4 eye = u_view * vec4(in_pos, 1.0);
-    v_nrm = in_nrm;
+#if INSTANCED
+    vec3 pos = yaw_rotate(in_pos * in_inst.w, in_extra.x) + in_inst.xyz;
+    vec3 nrm = yaw_rotate(in_nrm, in_extra.x);
+#else
+    vec3 pos = in_pos;
+    vec3 nrm = in_nrm;
+#endif
+    vec4 eye = u_view * vec4(pos, 1.0);
+    v_nrm = nrm;
     v_uv = in_uv;
     v_depth = -eye.z;
 #if MASK_PASS
     v_alpha = in_col.a;
 #else
-    v_pos = in_pos;
+    v_pos = pos;
     v_col = in_col;
 #endif
     gl_Position = u_proj * eye;
 }
 """
-_VERTEX = "#version 330\n#define MASK_PASS 0\n" + _VERTEX_BODY
-_VERTEX_MASK = "#version 330\n#define MASK_PASS 1\n" + _VERTEX_BODY
+
+
+def _vertex(mask: bool, instanced: bool) -> str:
+    return f"#version 330\n#define MASK_PASS {int(mask)}\n#define INSTANCED {int(instanced)}\n" + _VERTEX_BODY
 
 # Fragment shaders are compiled per variant (alpha mode, texture or not, flat-normal fallback,
 # normal map, shadows) so that OPAQUE parts have no ``discard`` (llvmpipe then tests depth

@@ -11,7 +11,10 @@ Outputs (``impostor/`` beside the tree, all or nothing): ``rdm.npz``
 (:class:`~treeform.structures.RadialDistanceMap`), ``color_px.png`` … ``color_nz.png`` (the six
 faces, OpenGL order), ``color_cross.png`` (the faces unfolded, to look at), ``front.png`` (the
 view the colours came from), ``leaflets/`` (a leaflet billboard and its channels, seed 001 §4.2:
-what the clipped billboard clouds draw near the camera) and ``impostor.json`` (the manifest).
+what the clipped billboard clouds draw near the camera), ``cloud.npz`` (the billboard centres
+on the tree's branch points, every prefix spread, and the billboard edge), ``wood.glb`` (trunk
+and main limbs under a small triangle budget, drawn under the cloud) and ``impostor.json``
+(the manifest). :func:`read_impostor` reads the folder back.
 """
 
 from __future__ import annotations
@@ -26,9 +29,15 @@ from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform._shared.timing import ProgressCallback, StageTimer
 
-__all__ = ["IMPOSTOR_STAGES", "IMPOSTOR_COLORS", "FACE_NAMES", "Impostor", "make_impostor"]
+__all__ = ["IMPOSTOR_STAGES", "IMPOSTOR_COLORS", "FACE_NAMES", "Impostor", "make_impostor", "read_impostor"]
 
-IMPOSTOR_STAGES = ("load", "render", "rdm", "color", "leaflets", "export")
+IMPOSTOR_STAGES = ("load", "render", "rdm", "color", "leaflets", "cloud", "export")
+CLOUD_COVER = 3.0
+"""Layers of billboards over the crown's silhouette with all of them drawn (sets their size)."""
+WOOD_TRIANGLES = 2000
+"""Triangle budget of ``wood.glb``, the trunk and limbs under the near trees' billboard clouds."""
+WOOD_TEXTURE = 256
+"""Largest edge of ``wood.glb``'s bark textures (the near trees are seen from metres away, not centimetres)."""
 FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
 _LEAFLET_ATTRACTORS = 800
 """File suffixes of the six faces, OpenGL order (+X, -X, +Y, -Y, +Z, -Z)."""
@@ -44,6 +53,9 @@ class Impostor:
     leaflets: object  # LeafletBillboard
     manifest: dict
     files: dict = field(default_factory=dict)
+    cloud_points: np.ndarray | None = None  # (P, 3) float32, billboard centres
+    cloud_size: float = 0.0  # billboard edge (m) with all P drawn
+    wood: object = None  # Mesh: trunk and limbs under the cloud
 
     def planar(self) -> dict:
         """The front view as :func:`~treeform.render.impostor.render_rdm_impostor`'s ``planar`` colour."""
@@ -57,7 +69,7 @@ tree, whose other sides nobody saw) or baked from views of the mesh all round (a
 
 
 def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 128, view_size: int = 512,
-                  leaflet_size: int = 256, seed: int = 0, colors: str = "synthesis",
+                  leaflet_size: int = 256, seed: int = 0, colors: str = "synthesis", engine=None,
                   progress: ProgressCallback | None = None) -> Impostor:
     """Colour cubemap and radial distance map of a tree from its output folder.
 
@@ -81,6 +93,10 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         The colour cubemap: texture synthesis from the front view
         (:func:`~treeform.crown.color_cubemap.color_cubemap`), or the mesh's own colours seen
         from outside on the RDM's surface (:func:`~treeform.render.bake_color_cubemap`).
+    engine : (float, float), optional
+        Also write ``engine/``: the tree as a chain of GLB levels for game engines (full mesh,
+        billboard cloud, impostor cards; :mod:`~treeform.methods.envelope.engine`) switching at
+        these two distances in metres, and ``engine/lods.json``.
     progress : callable, optional
         ``progress(stage, event, seconds)`` for :data:`IMPOSTOR_STAGES`.
 
@@ -99,6 +115,13 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
     from treeform._shared.checks import check_choice
 
     check_choice(colors, "colors", IMPOSTOR_COLORS)
+    if engine is not None:
+        try:
+            near, far = (float(x) for x in engine)
+        except (TypeError, ValueError):
+            raise InputError(f"engine: expected two switch distances in metres, got {engine!r}") from None
+        if not (0 < near < far < float("inf")):
+            raise InputError(f"engine: expected 0 < near < far metres, got {near:g}, {far:g}")
     src = Path(tree_dir)
     glb = src / "tree.glb" if src.is_dir() else src
     if not glb.is_file():
@@ -161,8 +184,22 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         from treeform.methods.envelope.leaflets import leaflet_billboard, leaflet_writers
 
         leaflets = leaflet_billboard("sphere", size=leaflet_size, attractors=_LEAFLET_ATTRACTORS, seed=seed)
+    with timer.stage("cloud"):
+        from treeform.crown.sampling import billboard_centres
+        from treeform.render.cloud import MAX_BILLBOARDS
+
+        skeleton = _skeleton_beside(glb)
+        cloud_points = billboard_centres(rdm, None if skeleton is None else skeleton.positions, MAX_BILLBOARDS,
+                                         box=(lp.min(0), lp.max(0)), seed=seed)
+        fill = max(float((leaflets.rgba[..., 3] >= 128).mean()), 0.05)
+        lo, hi = rdm.bounds()
+        cloud_size = float(np.mean(hi - lo) / 2 * np.sqrt(CLOUD_COVER * np.pi / (fill * len(cloud_points))))
+        wood = _wood_mesh(mesh, skeleton, seed)
     manifest = {
         "treeform": __version__, "source": str(glb), "seed": int(seed),
+        "cloud": {"file": "cloud.npz", "billboards": int(len(cloud_points)), "size": round(cloud_size, 6),
+                  "from": "skeleton" if skeleton is not None else "rdm shell",
+                  "wood": "wood.glb", "wood_triangles": int(wood.n_triangles)},
         "leaflets": {"folder": "leaflets", "size": leaflet_size, "shape": "sphere", "leaves": leaflets.leaves},
         "color": {"faces": [f"color_{n}.png" for n in FACE_NAMES], "face_size": face, "order": "+X -X +Y -Y +Z -Z",
                   "made_by": colors,
@@ -174,9 +211,11 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         "front": {"file": "front.png", "center_px": [round(float(x), 3) for x in uvz[:2]],
                   "pixels_per_metre": round(float(front_cam.focal / uvz[2]), 6)},
     }
-    result = Impostor(color, rdm, front, leaflets, manifest)
+    result = Impostor(color, rdm, front, leaflets, manifest, cloud_points=cloud_points, cloud_size=cloud_size,
+                      wood=wood)
     if out_dir is not None:
         with timer.stage("export"):
+            from treeform.io.gltf import write_glb
             from treeform.io.images import write_png
             from treeform.io.outputs import StagedOutputs, write_json
 
@@ -187,8 +226,125 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
                               lambda d: write_png(cross_from_faces(color), d / "color_cross.png"),
                               lambda d: write_png(front, d / "front.png"),
                               lambda d: rdm.save(d / "rdm.npz"),
+                              lambda d: _save_npz(d / "cloud.npz", points=cloud_points,
+                                                  size=np.float32(cloud_size)),
+                              lambda d: write_glb(wood, d / "wood.glb"),
                               *leaflet_writers(leaflets, seed=seed, attractors=_LEAFLET_ATTRACTORS, folder="leaflets"),
+                              *(_engine(result, glb, engine, seed) if engine is not None else ()),
                               lambda d: write_json(d / "impostor.json", manifest))
                 result.files = staged.commit()
     manifest["timings"] = {k: round(v, 4) for k, v in timer.timings.items()}
     return result
+
+
+def _engine(imp: Impostor, glb: Path, engine, seed: int) -> list:
+    from treeform.methods.envelope.engine import engine_writers
+
+    near, far = (float(x) for x in engine)
+    imp.manifest["engine"] = {"folder": "engine", "manifest": "lods.json", "switch_m": [near, far]}
+    return engine_writers(imp, glb, near=near, far=far, seed=seed)
+
+
+def _save_npz(path, **arrays):
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _skeleton_beside(glb: Path):
+    """The treeform skeleton written beside ``glb`` (``skeleton.json``), or None."""
+    from treeform.io.trees import read_tree
+
+    if not (glb.parent / "skeleton.json").is_file():
+        return None
+    return read_tree(glb.parent / "skeleton.json")
+
+
+def _wood_mesh(mesh, skeleton, seed: int):
+    """Trunk and main limbs under :data:`WOOD_TRIANGLES`, with the tree's own bark texture.
+
+    From the skeleton when there is one (the thinnest chains dropped first,
+    :func:`~treeform.geometry.lod.tree_mesh`); otherwise the GLB's opaque parts as they are.
+    """
+    from treeform.structures.mesh import Mesh
+
+    bark = [p for p in mesh.parts if p.material.alpha_mode == "OPAQUE" and p.n_triangles]
+    if skeleton is None:
+        return Mesh(bark)
+    from treeform.geometry.lod import tree_mesh
+
+    tex = _fit(bark[0].material.texture) if bark else None
+    normal = _fit(bark[0].material.normal_texture) if bark else None
+    if tex is not None and tex.shape[2] == 3:
+        tex = np.dstack([tex, np.full(tex.shape[:2], 255, np.uint8)])
+    return tree_mesh(skeleton, None, max_triangles=WOOD_TRIANGLES, radial_segments=6, bark_texture=tex,
+                     bark_normal=normal if tex is not None else None, seed=seed)
+
+
+def _fit(texture, edge: int = WOOD_TEXTURE):
+    """``texture`` reduced to at most ``edge`` texels a side (area-averaged), or None."""
+    if texture is None or max(texture.shape[:2]) <= edge:
+        return texture
+    import cv2
+
+    s = edge / max(texture.shape[:2])
+    size = (max(1, round(texture.shape[1] * s)), max(1, round(texture.shape[0] * s)))
+    return np.ascontiguousarray(cv2.resize(texture, size, interpolation=cv2.INTER_AREA))
+
+
+def read_impostor(folder) -> Impostor:
+    """An impostor folder written by :func:`make_impostor` (``treeform impostor``), read back.
+
+    Parameters
+    ----------
+    folder : path
+        The ``impostor/`` folder, or a tree's output folder holding one.
+
+    Returns
+    -------
+    Impostor
+        With :attr:`~Impostor.files` empty.
+
+    Raises
+    ------
+    InputError
+        A missing folder or file, or a folder written before billboard clouds existed
+        (rerun ``treeform impostor``).
+    """
+    import json
+
+    import cv2
+
+    from treeform.io.gltf import read_glb_mesh
+    from treeform.methods.envelope.leaflets import read_leaflet_billboard
+    from treeform.structures import RadialDistanceMap
+
+    d = Path(folder)
+    if not (d / "impostor.json").is_file() and (d / "impostor" / "impostor.json").is_file():
+        d = d / "impostor"
+    if not (d / "impostor.json").is_file():
+        raise InputError(f"{folder}: no impostor.json here (run `treeform impostor` on the tree first)")
+    try:
+        manifest = json.loads((d / "impostor.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{d / 'impostor.json'}: unreadable ({exc})") from None
+    if "cloud" not in manifest:
+        raise InputError(f"{d}: made by an older treeform without billboard clouds; rerun `treeform impostor`")
+
+    def image(name: str, flags=cv2.IMREAD_COLOR) -> np.ndarray:
+        img = cv2.imread(str(d / name), flags)
+        if img is None:
+            raise InputError(f"{d / name}: missing or unreadable")
+        return img
+
+    color = np.stack([image(f)[..., ::-1] for f in manifest["color"]["faces"]])
+    front = image(manifest["front"]["file"], cv2.IMREAD_UNCHANGED)
+    front = np.dstack([front[..., 2::-1], front[..., 3]]) if front.ndim == 3 and front.shape[2] == 4 else front
+    try:
+        rdm = RadialDistanceMap.load(d / manifest["rdm"]["file"])
+        with np.load(d / manifest["cloud"]["file"]) as z:
+            points, size = z["points"].astype(np.float32), float(z["size"])
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"{d}: unreadable impostor data ({exc})") from None
+    leaflets = read_leaflet_billboard(d / manifest["leaflets"]["folder"])
+    wood = read_glb_mesh(d / manifest["cloud"]["wood"])
+    return Impostor(color, rdm, front, leaflets, manifest, cloud_points=points, cloud_size=size, wood=wood)

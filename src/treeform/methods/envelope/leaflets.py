@@ -48,7 +48,7 @@ from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 
-__all__ = ["CHANNELS", "LEAFLET_STAGES", "LeafletBillboard", "leaflet_billboard", "leaflet_volume"]
+__all__ = ["CHANNELS", "LEAFLET_STAGES", "LeafletBillboard", "leaflet_billboard", "leaflet_volume", "read_leaflet_billboard"]
 
 CHANNELS = ("rgba", "normal", "centroid", "uv", "ao", "depth", "type")
 LEAFLET_STAGES = ("grow", "render", "occlusion", "export")
@@ -348,3 +348,38 @@ def _write(b: LeafletBillboard, out: Path, *, seed: int, attractors: int) -> dic
     from treeform.io.outputs import write_staged
 
     return write_staged(out, leaflet_writers(b, seed=seed, attractors=attractors))
+
+
+def read_leaflet_billboard(folder) -> LeafletBillboard:
+    """A leaflet billboard folder (``treeform leaflets``, an impostor's ``leaflets/``) read back.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable channel, or channels of different sizes.
+    """
+    import json
+
+    import cv2
+
+    d = Path(folder)
+    arrays = {}
+    for name in CHANNELS:
+        img = cv2.imread(str(d / f"{name}.png"), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise InputError(f"{d / (name + '.png')}: missing or unreadable")
+        if img.ndim == 3:  # BGR(A) -> RGB(A)
+            img = np.dstack([img[..., 2::-1], img[..., 3:]]) if img.shape[2] == 4 else img[..., ::-1]
+        arrays[name] = np.ascontiguousarray(img)
+    if arrays["rgba"].ndim != 3 or arrays["rgba"].shape[2] != 4:
+        raise InputError(f"{d / 'rgba.png'}: expected an RGBA image")
+    if len({a.shape[:2] for a in arrays.values()}) != 1:
+        raise InputError(f"{d}: the channels differ in size")
+    info = {}
+    if (d / "leaflets.json").is_file():
+        try:
+            info = json.loads((d / "leaflets.json").read_text())
+        except (OSError, ValueError):
+            info = {}
+    return LeafletBillboard(shape=str(info.get("shape", "sphere")), leaves=int(info.get("leaves", 0)),
+                            nodes=int(info.get("nodes", 0)), **arrays)

@@ -1,0 +1,124 @@
+"""The forest as a web page: three.js draws it with the renderer's own GLSL (``treeform forest --html``).
+
+``forest.html`` opens offline from the file system: three.js is vendored in the package
+(``report/assets/three-modules.js``), ``forest_viewer.js`` builds the scene, and
+``forest_data.js`` carries the trees, every species' RDM, colour cubemap, leaflet channels,
+billboard points and ``wood.glb`` (base64), and the shaders: the relief impostor's and the
+billboard cloud's fragment shaders are the very sources of :mod:`treeform.render.impostor` and
+:mod:`treeform.render.cloud`, turned into GLSL ES 3.00 by :func:`glsl_es` (WebGL 2 has no
+geometry shader: :data:`treeform.render.cloud.WEB_VS` draws the billboards as instanced quads).
+Near trees (the switch distance) are billboard clouds over their instanced wood, far ones
+relief impostors; the split is redone whenever the camera moves (drag to turn, wheel to zoom).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["forest_page_writers", "glsl_es"]
+
+_ES_HEADER = ("precision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
+              "precision highp samplerCube;\n")
+
+
+def glsl_es(source: str) -> str:
+    """A desktop GLSL 3.30 shader of the renderer as GLSL ES 3.00 for WebGL 2 (three.js adds ``#version``).
+
+    The ``#version`` line gives way to precision statements, and every output but location 0
+    (the id buffer the renderer reads back; a web page draws colour only) becomes a plain
+    global, so its assignments stay valid.
+
+    Examples
+    --------
+    >>> print(glsl_es("#version 330\\nlayout(location = 1) out vec4 f_ids;\\nvoid main() {}").splitlines()[-2])
+    vec4 f_ids;
+    """
+    body = re.sub(r"^\s*#version 330\s*\n", "", source, count=1)
+    body = re.sub(r"layout\(location\s*=\s*[1-9]\d*\)\s*out\s+", "", body)
+    return _ES_HEADER + body
+
+
+def _b64(a) -> str:
+    return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")
+
+
+def _species_data(s) -> dict:
+    import cv2
+
+    from treeform.io.gltf import write_glb
+
+    imp = s.impostor
+    lo, hi = imp.rdm.bounds()
+    pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
+    leaf = imp.leaflets
+    shade = np.dstack([leaf.normal[..., :3], leaf.ao if leaf.ao.ndim == 2 else leaf.ao[..., 0]]).astype(np.uint8)
+    depth8 = np.clip(np.rint(leaf.depth.astype(np.float64) / 65535.0 * 255.0), 0, 255) if leaf.depth.dtype == np.uint16 \
+        else leaf.depth
+    geo = np.dstack([leaf.centroid[..., :2], leaf.type if leaf.type.ndim == 2 else leaf.type[..., 0], depth8]).astype(np.uint8)
+    rgba = np.asarray(leaf.rgba, np.uint8)
+    ok = (geo[..., 2] == 255) & (rgba[..., 3] >= 128)
+    luma = float((rgba[..., :3].astype(np.float64) @ [0.299, 0.587, 0.114] / 255.0)[ok].mean()) if ok.any() else 0.5
+    face = min(128, imp.color.shape[1])
+    color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
+        if face != imp.color.shape[1] else imp.color
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        wood = Path(write_glb(imp.wood, Path(tmp) / "wood.glb")).read_bytes()
+    return {
+        "name": s.name, "radius": s.crown_radius,
+        "box": [[float(x) for x in lo - pad], [float(x) for x in hi + pad]],
+        "rdm": {"center": [float(x) for x in imp.rdm.center], "res": int(imp.rdm.resolution),
+                "radii": _b64(imp.rdm.radii.astype("<f4"))},
+        "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},
+        "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
+        "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
+        "wood": base64.b64encode(wood).decode("ascii"),
+    }
+
+
+def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_distance: float, area, lighting,
+                        sky, ground, relief_steps: int, relief_refine: int, full_px: float, title: str = "forest") -> list:
+    """Writers (:class:`~treeform.io.outputs.StagedOutputs`) of ``forest.html``, ``forest_data.js`` and
+    ``assets/`` (three.js, its licence, the viewer). Call on the thread that owns nothing GL: no GL is used."""
+    from treeform.render import impostor as relief
+    from treeform.render import cloud
+    from treeform.report.eval_page import ASSETS
+
+    data = {
+        "species": [_species_data(s) for s in species],
+        "trees": _b64(np.asarray(trees, "<f4")), "trees_count": int(len(trees)),
+        "switch_distance": float(switch_distance), "area": [float(a) for a in area], "full_px": float(full_px),
+        "relief_steps": int(relief_steps), "relief_refine": int(relief_refine),
+        "sky": [float(x) for x in sky[:3]], "ground": [float(x) for x in ground[:3]],
+        "lighting": {"direction": [float(x) for x in lighting.world_direction(camera)], "key": list(lighting.key),
+                     "sky": list(lighting.sky), "ground": list(lighting.ground)},
+        "camera": {"position": list(camera.position), "target": list(camera.target), "fov": float(camera.fov_y),
+                   "near": float(camera.near), "far": float(camera.far)},
+        "shaders": {"relief_vs": glsl_es(relief._VS), "relief_fs": glsl_es(relief._FS),
+                    "cloud_vs": glsl_es(cloud.WEB_VS), "cloud_fs": glsl_es(cloud._FS)},
+    }
+    script = "window.__tf_forest = " + json.dumps(data, separators=(",", ":")) + ";\n"
+    page = f"""<!doctype html>
+<html><head><meta charset="utf-8"><title>treeform: {title}</title>
+<style>body{{margin:0;font-family:sans-serif;background:#222;color:#ddd}}
+#tf-viewer{{width:100vw;height:calc(100vh - 2.2em);display:block}} p{{margin:0.4em 0.8em}}</style></head>
+<body><p>treeform forest: {len(trees)} trees, {len(species)} species; billboard clouds within
+{switch_distance:g} m, relief-mapped impostors beyond (drag to turn, wheel to zoom). three.js (MIT, assets/THREE_LICENSE).</p>
+<canvas id="tf-viewer"></canvas>
+<script src="assets/three-modules.js"></script><script src="forest_data.js"></script>
+<script src="assets/forest_viewer.js"></script></body></html>
+"""
+
+    def assets(d: Path):
+        (d / "assets").mkdir(exist_ok=True)
+        for name in ("three-modules.js", "forest_viewer.js", "THREE_LICENSE"):
+            shutil.copyfile(ASSETS / name, d / "assets" / name)
+
+    return [assets, lambda d: (d / "forest_data.js").write_text(script), lambda d: (d / "forest.html").write_text(page)]
