@@ -58,6 +58,10 @@ def test_forest_with_baseline(species, gl, tmp_path):
         a, b = _trees(lod), _trees(full)
         assert a.mean() > 0.2  # a forest, not a blank frame
         assert (a & b).sum() / (a | b).sum() > 0.8  # the LoD frame shows the trees the full meshes show
+        # ... in about their colours (the levels are lit alike)
+        ratio = lod[..., :3][a & b].astype(float).mean(0) / full[..., :3][a & b].astype(float).mean(0)
+        print("LoD / full mean colour", ratio)
+        assert np.all(np.abs(ratio - 1) < 0.2), ratio
     # the forest for engines: the ground plus one instanced node per species, every tree placed as scattered
     from treeform.io.gltf import accessor_array, read_glb
 

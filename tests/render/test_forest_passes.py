@@ -128,6 +128,8 @@ def test_cloud_draws_the_first_count_billboards_of_each_instance(gl):
         one = _draw(cloud, cam, [[0, 0, 0, 1, 0, 1]]).mask.sum()
         all9 = _draw(cloud, cam, [[0, 0, 0, 1, 0, 9]]).mask.sum()
         assert abs(one - all9 / 9 * 9) / all9 < 0.2
+        with pytest.raises(InputError, match="ao"):
+            CloudPass(rdm, pts, 0.6, _leaflet(), ao=2.0)
     finally:
         cloud.release()
 

@@ -130,6 +130,7 @@ uniform vec3 u_ground;
 uniform int u_clip;          // 0 none, 1 per leaf (centroid), 2 per fragment
 uniform int u_tint;
 uniform float u_leaf_luma;   // the leaflet's mean brightness over its leaves
+uniform float u_ao;          // how much the stored ambient occlusion darkens the ambient light (0..1)
 uniform float u_cutoff;
 uniform float u_id;
 in vec2 f_uv;
@@ -167,7 +168,7 @@ void main() {
     vec3 l = normalize(u_light);
     float ndl = max(dot(n, l), 0.0);
     // lit as the mesh renderer lights: hemisphere ambient (occluded by the stored AO) + key light
-    vec3 rgb = albedo * (mix(u_ground, u_sky, 0.5 + 0.5 * n.y) * sh.a + u_key * ndl);
+    vec3 rgb = albedo * (mix(u_ground, u_sky, 0.5 + 0.5 * n.y) * mix(1.0, sh.a, u_ao) + u_key * ndl);
     if (is_leaf && ndl > 0.0) {  // leaves shine a little, bark does not (the type bit, seed 001 §4.2)
         vec3 h = normalize(l + toward);
         rgb += vec3(0.06) * pow(max(dot(n, h), 0.0), 24.0);
@@ -249,13 +250,18 @@ class CloudPass(GLResources):
         Discard by the leaf's centroid (the paper's choice), by each fragment, or not at all.
     lighting : Lighting, optional
         As the mesh renderer's (default ``Lighting()``).
+    ao : float in [0, 1]
+        How much the stored ambient occlusion darkens the ambient light. The mesh renderer has
+        no occlusion: at 1 the clouds of the sample, an oak and a pine come out 26-31 % darker
+        than their meshes, at 0 within 6 %; 0.3 keeps some depth in the clusters and stays
+        within about 10 % (what a switch from mesh to cloud shows).
     part_id : int
     """
 
     name = "cloud"
 
     def __init__(self, rdm, points, size: float, leaflets, *, color: np.ndarray | None = None, tint: bool = True,
-                 clip: str = "leaf", lighting=None, cutoff: float = 0.5, part_id: int = 0):
+                 clip: str = "leaf", lighting=None, ao: float = 0.3, cutoff: float = 0.5, part_id: int = 0):
         import moderngl
 
         from treeform.structures import RadialDistanceMap
@@ -284,6 +290,9 @@ class CloudPass(GLResources):
         self.leaf_luma = float(luma[leaf].mean()) if leaf.any() else 0.5
         self.rdm, self.points, self.size = rdm, pts, float(size)
         self.tint, self.clip, self.cutoff = bool(tint), _CLIP_MODES[clip], float(cutoff)
+        if not 0.0 <= float(ao) <= 1.0:
+            raise InputError(f"ao: expected a number in [0, 1], got {ao!r}")
+        self.ao = float(ao)
         self.lighting = _check_lighting(lighting)
         self.part_id = int(part_id)
         self.instances = np.zeros((0, 6), np.float32)
@@ -339,7 +348,7 @@ class CloudPass(GLResources):
                                 ("u_center", self.rdm.center), *_light_uniforms(self.lighting, camera)):
                 _set(prog, name, tuple(float(x) for x in value))
             for name, value in (("u_size", self.size), ("u_full", float(self.n_points)), ("u_leaf_luma", self.leaf_luma),
-                                ("u_cutoff", self.cutoff), ("u_id", float(self.part_id + 1))):
+                                ("u_cutoff", self.cutoff), ("u_id", float(self.part_id + 1)), ("u_ao", self.ao)):
                 _set(prog, name, float(value))
             _set(prog, "u_clip", self.clip)
             _set(prog, "u_tint", int(self.tint))

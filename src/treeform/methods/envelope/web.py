@@ -95,7 +95,7 @@ def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_dist
         "species": [_species_data(s) for s in species],
         "trees": _b64(np.asarray(trees, "<f4")), "trees_count": int(len(trees)),
         "switch_distance": float(switch_distance), "area": [float(a) for a in area], "full_px": float(full_px),
-        "relief_steps": int(relief_steps), "relief_refine": int(relief_refine),
+        "relief_steps": int(relief_steps), "relief_refine": int(relief_refine), "cloud_ao": 0.3,
         "sky": [float(x) for x in sky[:3]], "ground": [float(x) for x in ground[:3]],
         "lighting": {"direction": [float(x) for x in lighting.world_direction(camera)], "key": list(lighting.key),
                      "sky": list(lighting.sky), "ground": list(lighting.ground)},

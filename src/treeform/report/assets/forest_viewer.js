@@ -102,7 +102,7 @@
         u_rgba: { value: rgbaTexture(L.rgba, L.size, false) }, u_shade: { value: rgbaTexture(L.shade, L.size, false) },
         u_geo: { value: rgbaTexture(L.geo, L.size, true) }, u_rdm: { value: rdm }, u_color: { value: color },
         u_center: { value: new THREE.Vector3().fromArray(c) }, u_clip: { value: 1 }, u_tint: { value: 1 },
-        u_leaf_luma: { value: L.luma }, u_cutoff: { value: 0.5 }, u_id: { value: 1001 + k },
+        u_leaf_luma: { value: L.luma }, u_cutoff: { value: 0.5 }, u_id: { value: 1001 + k }, u_ao: { value: D.cloud_ao },
       }, lightUniforms()),
     });
     const cloudMesh = new THREE.Mesh(quad, cloud);
