@@ -164,11 +164,20 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         radii = render_radial_cubemap(verts, np.concatenate(tris), center, resolution=rdm_resolution)
         # thin parts (twigs, a trunk far below the centre, small cards) can fall between texel
         # centres: every vertex also raises its own texel, so the map holds the whole tree
+        import cv2
+
         from treeform.structures.rdm import direction_to_texel
 
         d = verts - center
         f, r, c = direction_to_texel(d, rdm_resolution)
         np.maximum.at(radii, (f, r, c), np.linalg.norm(d, axis=1).astype(np.float32))
+        # a 3x3 median per face drops the single-texel spikes those splats (and pits the rasterizer's
+        # gaps) leave in the crown: a spiky rim and streaky relief otherwise (bench_impostor.py:
+        # silhouette IoU at 32 px 0.81 -> 0.86 for a grown oak); the bare trunk below the crown is
+        # thin too, so its vertices raise their texels again
+        radii = np.stack([cv2.medianBlur(np.ascontiguousarray(x), 3) for x in radii])
+        below = verts[:, 1] < lp[:, 1].min()
+        np.maximum.at(radii, (f[below], r[below], c[below]), np.linalg.norm(d[below], axis=1).astype(np.float32))
         rdm = RadialDistanceMap(center, radii)
     with timer.stage("color"):
         from treeform.crown.color_cubemap import color_cubemap, cross_from_faces
