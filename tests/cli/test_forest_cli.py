@@ -83,6 +83,15 @@ def test_forest_with_baseline(species, gl, tmp_path):
         rep = json.loads(subprocess.run(["node", str(validator), str(out / "forest.glb")], capture_output=True,
                                         text=True, timeout=120).stdout)
         assert rep["numErrors"] == 0 and rep["numWarnings"] == 0, rep["messages"]
+    # Blender's glTF importer turns the instanced nodes into one object per tree
+    blender = Path(__file__).resolve().parents[2] / ".venv-blender" / "bin" / "python"
+    if blender.exists():
+        script = ("import bpy, sys\nbpy.ops.wm.read_factory_settings(use_empty=True)\n"
+                  "bpy.ops.import_scene.gltf(filepath=sys.argv[-1])\n"
+                  "print('TREES', sum(o.type == 'MESH' and o.data.name in ('oak', 'pine') for o in bpy.context.scene.objects))")
+        proc = subprocess.run([str(blender), "-c", script, str(out / "forest.glb")], capture_output=True, text=True,
+                              timeout=300)
+        assert "TREES 600" in proc.stdout, proc.stdout[-2000:] + proc.stderr[-2000:]
     # same seed, same scatter and frames
     proc = cli(*args[:4], tmp_path / "again", *args[5:])
     assert proc.returncode == 0, proc.stderr
