@@ -97,10 +97,9 @@ def _leaflet(size=64, quadrants=False):
     centroid = np.dstack([np.rint(cx * 255), np.rint(cy * 255), np.zeros_like(cx)]).astype(np.uint8)
     normal = np.zeros((size, size, 3), np.uint8)
     normal[...] = (128, 128, 255)
-    z8 = np.zeros((size, size), np.uint8)
     return LeafletBillboard("sphere", rgba, normal, centroid, np.zeros((size, size, 3), np.uint8),
                             np.full((size, size), 255, np.uint8), np.zeros((size, size), np.uint16),
-                            np.full((size, size), 255, np.uint8) + z8, 4 if quadrants else 1, 1)
+                            np.full((size, size), 255, np.uint8), 4 if quadrants else 1, 1)
 
 
 def _draw(pass_, cam, rows):

@@ -37,7 +37,7 @@ from treeform.render.instances import check_instances
 from treeform.render.shaders import INSTANCE_FORMAT, YAW_GLSL
 from treeform.structures.camera import Camera
 
-__all__ = ["CloudPass", "MIN_BILLBOARDS", "MAX_BILLBOARDS", "WEB_VS", "billboard_count"]
+__all__ = ["CloudPass", "MIN_BILLBOARDS", "MAX_BILLBOARDS", "WEB_VS", "billboard_count", "leaflet_textures"]
 
 MIN_BILLBOARDS, MAX_BILLBOARDS = 16, 144
 """Billboards per tree instance (seed 001 §5.1: 16 to 144 by screen-projected area)."""
@@ -213,6 +213,28 @@ void main() {
 _CLIP_MODES = {"none": 0, "leaf": 1, "fragment": 2}
 
 
+def leaflet_textures(leaflets) -> tuple:
+    """A leaflet billboard's channels packed as the cloud's shaders read them.
+
+    Returns
+    -------
+    rgba, shade, geo : ndarray, shape (S, S, 4), uint8
+        Colour; ``(n + 1) / 2`` and ambient occlusion; leaf centroid (R, G), type (B) and depth
+        (A, 0 near, 8 bits).
+    leaf_luma : float
+        Mean brightness of the leaf texels (what the cubemap tint is relative to).
+    """
+    rgba = np.ascontiguousarray(leaflets.rgba, np.uint8)
+    ao = leaflets.ao if leaflets.ao.ndim == 2 else leaflets.ao[..., 0]
+    shade = np.ascontiguousarray(np.dstack([leaflets.normal[..., :3], ao]), np.uint8)
+    depth = leaflets.depth.astype(np.float64) * (255.0 / 65535.0 if leaflets.depth.dtype == np.uint16 else 1.0)
+    kind = leaflets.type if leaflets.type.ndim == 2 else leaflets.type[..., 0]
+    geo = np.ascontiguousarray(np.dstack([leaflets.centroid[..., :2], kind, np.clip(np.rint(depth), 0, 255)]), np.uint8)
+    leaf = (geo[..., 2] == 255) & (rgba[..., 3] >= 128)
+    luma = rgba[..., :3].astype(np.float64) @ [0.299, 0.587, 0.114] / 255.0
+    return rgba, shade, geo, float(luma[leaf].mean()) if leaf.any() else 0.5
+
+
 def billboard_count(diameter_px, *, full_px: float = 400.0) -> np.ndarray:
     """Billboards for a crown ``diameter_px`` wide on screen: by projected area, 16 to 144.
 
@@ -278,16 +300,8 @@ class CloudPass(GLResources):
         color = np.ascontiguousarray(color, np.uint8)
         if color.ndim != 4 or color.shape[0] != 6 or color.shape[1] != color.shape[2] or color.shape[3] != 3:
             raise InputError(f"color: expected (6, F, F, 3) uint8 faces, got {color.shape}")
-        rgba = np.ascontiguousarray(leaflets.rgba, np.uint8)
+        rgba, shade, geo, self.leaf_luma = leaflet_textures(leaflets)
         h, w = rgba.shape[:2]
-        shade = np.dstack([leaflets.normal[..., :3], leaflets.ao[..., None] if leaflets.ao.ndim == 2 else leaflets.ao[..., :1]])
-        depth8 = (leaflets.depth.astype(np.float64) / 65535.0 * 255.0 if leaflets.depth.dtype == np.uint16
-                  else leaflets.depth.astype(np.float64))
-        geo = np.dstack([leaflets.centroid[..., :2], leaflets.type if leaflets.type.ndim == 2 else leaflets.type[..., 0],
-                         np.clip(np.rint(depth8), 0, 255)]).astype(np.uint8)
-        leaf = (geo[..., 2] == 255) & (rgba[..., 3] >= 128)
-        luma = rgba[..., :3].astype(np.float64) @ [0.299, 0.587, 0.114] / 255.0
-        self.leaf_luma = float(luma[leaf].mean()) if leaf.any() else 0.5
         self.rdm, self.points, self.size = rdm, pts, float(size)
         self.tint, self.clip, self.cutoff = bool(tint), _CLIP_MODES[clip], float(cutoff)
         if not 0.0 <= float(ao) <= 1.0:
@@ -308,7 +322,7 @@ class CloudPass(GLResources):
                     self.tex_rgba.build_mipmaps()
                 self.tex_rgba.write(img.tobytes(), level=level)
             self.tex_rgba.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-            self.tex_shade = ctx.texture((w, h), 4, data=np.ascontiguousarray(shade, np.uint8).tobytes())
+            self.tex_shade = ctx.texture((w, h), 4, data=shade.tobytes())
             self.tex_shade.build_mipmaps()
             self.tex_shade.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
             self.tex_geo = ctx.texture((w, h), 4, data=geo.tobytes())

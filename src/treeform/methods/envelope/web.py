@@ -52,18 +52,12 @@ def _species_data(s) -> dict:
     import cv2
 
     from treeform.io.gltf import write_glb
+    from treeform.render.cloud import leaflet_textures
 
     imp = s.impostor
     lo, hi = imp.rdm.bounds()
     pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
-    leaf = imp.leaflets
-    shade = np.dstack([leaf.normal[..., :3], leaf.ao if leaf.ao.ndim == 2 else leaf.ao[..., 0]]).astype(np.uint8)
-    depth8 = np.clip(np.rint(leaf.depth.astype(np.float64) / 65535.0 * 255.0), 0, 255) if leaf.depth.dtype == np.uint16 \
-        else leaf.depth
-    geo = np.dstack([leaf.centroid[..., :2], leaf.type if leaf.type.ndim == 2 else leaf.type[..., 0], depth8]).astype(np.uint8)
-    rgba = np.asarray(leaf.rgba, np.uint8)
-    ok = (geo[..., 2] == 255) & (rgba[..., 3] >= 128)
-    luma = float((rgba[..., :3].astype(np.float64) @ [0.299, 0.587, 0.114] / 255.0)[ok].mean()) if ok.any() else 0.5
+    rgba, shade, geo, luma = leaflet_textures(imp.leaflets)  # as the renderer's CloudPass packs them
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
         if face != imp.color.shape[1] else imp.color
