@@ -48,7 +48,7 @@ def test_seg_training_resumes_to_the_same_weights(tmp_path, tiny_data):
     with pytest.raises(InputError, match="other settings"):
         train_seg(tiny_data, tmp_path / "b", **{**opts, "lr": 1e-2})
     # ... resumed with the scenes composed by a worker process: same scenes, so the same weights
-    b = train_seg(tiny_data, tmp_path / "b", test_data=tiny_data, workers=1, **{**opts, "checkpoint_every": 1})
+    train_seg(tiny_data, tmp_path / "b", test_data=tiny_data, workers=1, **{**opts, "checkpoint_every": 1})
     wa = torch.load(tmp_path / "a" / "checkpoint.pt", weights_only=False)["model"]
     wb = torch.load(tmp_path / "b" / "checkpoint.pt", weights_only=False)["model"]
     assert all(torch.equal(wa[k], wb[k]) for k in wa)
@@ -134,6 +134,30 @@ def test_onnx_weights_load_back_into_the_network_for_fine_tuning(tmp_path):
     assert np.abs(ours - ref).max() < 1e-4 * max(1.0, np.abs(ref).max())
     with pytest.raises(InputError, match="shape|no weights"):
         load_onnx_into(SegNet(16, fine_stride=4), path, calibrate=torch.rand(2, 3, 64, 64))
+
+
+def test_a_network_grown_by_the_refinement_starts_as_the_weights_it_grew_from(tmp_path):
+    import onnxruntime as ort
+
+    from treeform._shared.errors import InputError
+    from treeform.learn.export import export_onnx, load_onnx_into
+    from treeform.learn.nets.segnet import SegNet
+
+    torch.manual_seed(0)
+    path = export_onnx(SegNet(8).eval(), tmp_path / "seg.onnx", kind="seg", example_shape=(1, 3, 64, 64))
+    grown = SegNet(8, refine=6)
+    with pytest.raises(InputError, match="no weights for layer full"):  # only where asked for
+        load_onnx_into(grown, path, calibrate=torch.rand(2, 3, 64, 64))
+    load_onnx_into(grown, path, calibrate=torch.rand(2, 3, 64, 64), new_layers=("full", "refine"))
+    x = torch.rand(1, 3, 40, 56)
+    ref = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).run(None, {"image": x.numpy()})[0]
+    with torch.no_grad():
+        assert np.abs(grown.eval()(x).numpy() - ref).max() < 1e-4 * max(1.0, np.abs(ref).max())
+        # the correction is live: a non-zero last layer changes single pixels of the logits
+        grown.refine[-1].bias.copy_(torch.tensor([0.0, 0.0, 5.0]))
+        assert (grown(x).argmax(1) == 2).all()
+    with pytest.raises(ValueError, match="refine"):
+        SegNet(8, fine_stride=4, refine=6)
 
 
 def test_unsure_pixels_carry_no_loss():

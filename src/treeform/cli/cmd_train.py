@@ -35,6 +35,8 @@ def seg_cmd(
     noise: float = typer.Option(0.03, "--noise", help="Share of scenes that are random noise, all background."),
     fine_stride: int = typer.Option(1, "--fine-stride", help="Resolution of the logits: 1 (sub-pixel head) or 4 "
                                     "(plain DeepLab-V3+)."),
+    refine: int = typer.Option(0, "--refine", help="Channels of a full-resolution refinement of the logits "
+                               "(0 = none; with --fine-stride 1). From --init weights without it, it starts as a no-op."),
     size: int = typer.Option(224, "--size", help="Edge of the square training scenes in pixels (the test scenes too)."),
     width: int = typer.Option(16, "--width", help="SegNet channel base (16: about 0.3 M parameters; 24: 0.7 M)."),
     bushes: float = typer.Option(0.0, "--bushes", help="Share of scenes with leafy bushes behind the tree's foot "
@@ -52,7 +54,7 @@ def seg_cmd(
 
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
                 seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
-                fine_stride=fine_stride, photo_tree_fraction=photo_trees, noise_negatives=noise,
+                fine_stride=fine_stride, refine=refine, photo_tree_fraction=photo_trees, noise_negatives=noise,
                 size=size, width=width, repeats=repeats, bush_fraction=bushes, sparse_boost=sparse_boost,
                 tree_dice=tree_dice, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),

@@ -54,7 +54,7 @@ def export_onnx(model, path, *, kind: str, metadata: dict | None = None, example
     return path
 
 
-def load_onnx_into(model, path, *, calibrate) -> None:
+def load_onnx_into(model, path, *, calibrate, new_layers: tuple[str, ...] = ()) -> None:
     """Load ONNX weights exported by :func:`export_onnx` back into ``model`` (same architecture).
 
     The export folds each BatchNorm into the convolution before it; here every convolution
@@ -71,6 +71,10 @@ def load_onnx_into(model, path, *, calibrate) -> None:
         The ONNX file.
     calibrate : torch.Tensor
         A batch of inputs, (N, 3, H, W).
+    new_layers : tuple of str
+        Module paths (prefixes) that the file may lack: a network grown from smaller weights
+        (e.g. SegNet's ``("full", "refine")``) keeps its own initialisation there. Any other
+        missing layer is an error.
     """
     import onnx
     import torch
@@ -83,6 +87,9 @@ def load_onnx_into(model, path, *, calibrate) -> None:
     except Exception as e:  # noqa: BLE001 - any unreadable file
         raise ModelError(f"{path}: unreadable ONNX weights ({e})") from None
     inits = {i.name: numpy_helper.to_array(i) for i in graph.initializer}
+    for node in graph.node:  # the exporter shares equal tensors (e.g. the zero biases of a fresh net) by Identity
+        if node.op_type == "Identity" and node.input[0] in inits:
+            inits[node.output[0]] = inits[node.input[0]]
     convs = {}
     for node in graph.node:
         if node.op_type == "Conv":
@@ -95,6 +102,8 @@ def load_onnx_into(model, path, *, calibrate) -> None:
             if not isinstance(m, torch.nn.Conv2d):
                 continue
             if name not in convs:
+                if any(name == p or name.startswith(p + ".") for p in new_layers):
+                    continue
                 raise InputError(f"{path}: no weights for layer {name} (another architecture?)")
             w, b = convs.pop(name)
             if tuple(w.shape) != tuple(m.weight.shape):

@@ -56,6 +56,9 @@ class SegTrainConfig:
     """SegNet channel base."""
     fine_stride: int = 1
     """Resolution of SegNet's logits (1 = the scene's own pixels; 4 = plain DeepLab-V3+)."""
+    refine: int = 0
+    """Channels of SegNet's full-resolution refinement (0 = none; with ``init`` from weights without it,
+    the branch is added and starts as a no-op)."""
     lr: float = 3e-3
     """Peak AdamW learning rate (warm-up, then cosine decay to 2 %)."""
     weight_decay: float = 1e-4
@@ -300,7 +303,7 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
                                     sparse_boost=cfg.sparse_boost)
     dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
-    model = SegNet(cfg.width, fine_stride=cfg.fine_stride).to(dev)
+    model = SegNet(cfg.width, fine_stride=cfg.fine_stride, refine=cfg.refine).to(dev)
     if dev.type == "cuda":
         torch.backends.cudnn.benchmark = True
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -326,7 +329,8 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         from treeform.learn.export import load_onnx_into
 
         first = rounds.get(0)[0][:32]
-        load_onnx_into(model, cfg.init, calibrate=torch.from_numpy(first).to(dev).permute(0, 3, 1, 2).float() / 255.0)
+        load_onnx_into(model, cfg.init, calibrate=torch.from_numpy(first).to(dev).permute(0, 3, 1, 2).float() / 255.0,
+                       new_layers=("full", "refine"))
     try:
         _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_seconds, progress)
     finally:

@@ -16,7 +16,14 @@ from scratch; the DeepLab parts are kept:
   resolution. Bilinear upsampling of stride-4 logits cannot draw a twig: even the *true*
   labels, reduced to stride 4 and upsampled back, score only 33 % wood IoU (73 % mean) on
   our test scenes; at stride 2, 59 % (84 %) (``benchmarks/bench_segment.py --test-data``).
-  ``fine_stride`` picks where the decoder stops (4 = plain V3+, the shipped weights).
+  ``fine_stride`` picks where the decoder stops (4 = plain V3+).
+- optionally (``refine`` > 0) a **full-resolution refinement**: a shallow branch of the
+  input's own pixels (a 3x3 convolution and a separable one, ``refine`` channels) and two
+  separable 3x3 convolutions over those features and the sub-pixel logits that add a
+  correction to the logits. Every other layer sees the image at stride 2 or coarser, where a
+  twig one pixel wide is a faint mix with the leaves around it; here it is a line. The
+  correction's last layer starts at zero, so a network grown from weights without the
+  branch (``load_onnx_into(..., new_layers=("full", "refine"))``) starts as it was.
 
 Input: (N, 3, H, W) float RGB in [0, 1] with H, W multiples of 8. Output: (N, 3, H, W)
 logits for background, foliage, wood.
@@ -64,9 +71,17 @@ class SegNet(nn.Module):
         Resolution of the logits before the final upsampling (1 = the input's, by a
         sub-pixel head on the stride-2 decoder: 1.2x the stride-4 net's training step on the
         2-core CPU, where a full-resolution convolution branch took 1.6x).
+    refine : int
+        Channels of the full-resolution refinement (0 = none; needs ``fine_stride`` 1).
+
+    Examples
+    --------
+    >>> net = SegNet(8, refine=8).eval()
+    >>> tuple(net(torch.zeros(1, 3, 64, 48)).shape)
+    (1, 3, 64, 48)
     """
 
-    def __init__(self, width: int = 16, classes: int = 3, fine_stride: int = 1):
+    def __init__(self, width: int = 16, classes: int = 3, fine_stride: int = 1, refine: int = 0):
         super().__init__()
         w = width
         self.register_buffer("mean", torch.tensor(MEAN).view(1, 3, 1, 1))
@@ -94,6 +109,16 @@ class SegNet(nn.Module):
             c = w
         # stride 1: each stride-2 cell predicts the logits of its 2x2 pixels (pixel shuffle)
         self.head = nn.Conv2d(c, classes * (4 if fine_stride == 1 else 1), 1)
+        if refine < 0 or (refine and fine_stride != 1):
+            raise ValueError(f"refine must be 0, or > 0 with fine_stride 1; got {refine} with fine_stride {fine_stride}")
+        self.refine_channels = int(refine)
+        if refine:
+            r = int(refine)
+            self.full = nn.Sequential(conv_bn(3, r, 3), separable(r, r))
+            self.refine = nn.Sequential(separable(r + classes, r + 4), separable(r + 4, r + 4),
+                                        nn.Conv2d(r + 4, classes, 1))
+            nn.init.zeros_(self.refine[-1].weight)
+            nn.init.zeros_(self.refine[-1].bias)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h, w = x.shape[2], x.shape[3]
@@ -108,5 +133,8 @@ class SegNet(nn.Module):
             y = self.decoder2(torch.cat([y, self.skip2(half)], 1))
         y = self.head(y)
         if self.fine_stride == 1:
-            return F.pixel_shuffle(y, 2)
+            y = F.pixel_shuffle(y, 2)
+            if self.refine_channels:
+                y = y + self.refine(torch.cat([y, self.full(x)], 1))
+            return y
         return F.interpolate(y, size=(h, w), mode="bilinear", align_corners=False)

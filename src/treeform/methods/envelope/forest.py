@@ -14,7 +14,8 @@ With ``baseline`` the same frames are drawn again with every visible tree as its
 (``tree.glb``, instanced too), so the speed-up is measured side by side on the same machine.
 
 Outputs (all or nothing): ``frames/frame_KKK.png`` (and ``frames/baseline_KKK.png``),
-``contact_sheet.png``, ``timing.json`` (``ms_per_frame`` median over frames, per-frame
+``contact_sheet.png``, ``timing.json`` (``ms_per_frame`` median over frames, each drawn after one
+untimed frame that compiles the shaders and uploads the textures, per-frame
 milliseconds by representation, trees per millisecond, visible / near / far trees, memory
 per species, ``baseline_ms_per_frame`` and ``speedup`` with ``baseline``), ``instances.npy``
 ((N, 7): x, y, z, scale, yaw, 0, species index), ``config.json``; with ``glb``
@@ -326,8 +327,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
             reliefs.append(ReliefPass(imp.rdm, color=imp.color, steps=cfg.relief_steps, refine=cfg.relief_refine,
                                       lighting=lighting, part_id=2000 + k))
         with timer.stage("frames"):
-            for cam in cams:
-                renderer.camera = cam
+            for i, cam in enumerate([cams[0], *cams]):  # the first frame twice: once untimed (shaders compile,
+                renderer.camera = cam                    # textures upload on first use), so times are steady-state
                 lod = select_lod(trees, species, cam, cfg.switch_distance, full_px=cfg.full_billboards_px)
                 rows = np.column_stack([trees[:, :5], lod["count"]]).astype(np.float32)
                 items = [(ground, None)]
@@ -338,6 +339,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
                     clouds[k].instances, reliefs[k].instances = rows[near], rows[far]
                 stats: dict = {}
                 res = renderer.render_scene(items, passes=[*clouds, *reliefs], stats=stats)
+                if i == 0:
+                    continue
                 frames.append(res.color)
                 n_vis, n_near = int(lod["visible"].sum()), int(lod["near"].sum())
                 per_frame.append({"ms": round(stats["draw"], 3), "meshes_ms": round(stats["meshes"], 3),
@@ -347,7 +350,7 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
                                   "billboards": int(lod["count"].sum())})
         if cfg.baseline:
             with timer.stage("baseline"):
-                for k, cam in enumerate(cams):
+                for k, cam in enumerate([cams[0], *cams], start=-1):  # likewise one untimed frame first
                     renderer.camera = cam
                     lod = select_lod(trees, species, cam, cfg.switch_distance)
                     rows = np.column_stack([trees[:, :5], np.zeros(len(trees))]).astype(np.float32)
@@ -355,6 +358,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
                                                 for j, s in enumerate(species)]
                     stats = {}
                     res = renderer.render_scene(items, stats=stats)
+                    if k < 0:
+                        continue
                     baseline_frames.append(res.color)
                     per_frame[k]["baseline_ms"] = round(stats["draw"], 3)
     finally:
