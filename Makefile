@@ -47,6 +47,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_multiview.py
 	$(PY) benchmarks/bench_impostor.py --sizes 32,64,128
 	$(PY) benchmarks/bench_forest.py --trees 5000 --area 700 --frames 3 --baseline
+	$(PY) benchmarks/bench_scene.py --cases 40
 
 # the perception networks, end to end: synthetic data -> training -> ONNX -> metrics (resumable: rerun after a kill).
 # The shipped segmenter (width 24, logits at every pixel, 320-px scenes, 6000 steps x 32, then a 3600-step

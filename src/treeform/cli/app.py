@@ -168,9 +168,20 @@ def reconstruct(
     report: bool = typer.Option(False, "--report", help="Also write report.html: pictures, metrics, stage times, "
                                 "the tree in a 3D viewer (opens offline)."),
     impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),
+    all_trees: bool = typer.Option(False, "--all-trees", help="Every tree of the photo: each found, reconstructed "
+                                   "from its own crop into OUT/tree_K/, and placed on a common ground plane from "
+                                   "where its trunk meets the ground (OUT/scene.glb, scene.json, preview.png)."),
+    camera_height: float = typer.Option(1.6, "--camera-height", min=0.1, max=500.0,
+                                        help="--all-trees: metres from the ground to the camera (the scene's "
+                                             "scale, unless --height gives the tallest tree's)."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
+
+    if all_trees and (mask is not None or report or impostor):
+        bad = [n for n, v in (("--mask", mask), ("--report", report), ("--impostor", impostor)) if v]
+        typer.echo(f"error: {', '.join(bad)}: not with --all-trees (each tree's mask comes from the photo)", err=True)
+        raise typer.Exit(2)
 
     envelope_only = {"--leaf-texture": leaf_texture, "--profile": profile, "--k": k, "--depth-ratio": depth_ratio,
                      "--rdm-rotations": rdm_rotations, "--colonization": colonization}
@@ -187,11 +198,10 @@ def reconstruct(
         from treeform.methods.synthesis.pipeline import STAGES
         from treeform.methods.synthesis.pipeline import reconstruct as api
 
-        res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
-                      inputs=(photo, ("--mask", mask)), candidates=24 if candidates is None else candidates,
-                      tree_height=10.0 if height is None else height,
-                      segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, stages=STAGES,
-                      texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
+        kw = dict(species=species, leaves=leaves, lod=lod.value, candidates=24 if candidates is None else candidates,
+                  tree_height=10.0 if height is None else height,
+                  segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, stages=STAGES,
+                  texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
     elif method is Method.learned:
         if given:
             typer.echo(f"error: {', '.join(given)} work{'s' if len(given) == 1 else ''} with --method envelope",
@@ -200,10 +210,9 @@ def reconstruct(
         from treeform.methods.learned.pipeline import STAGES
         from treeform.methods.learned.pipeline import reconstruct as api
 
-        res = run_api(api, photo, mask=mask, out=out, seed=seed, species=species, leaves=leaves, lod=lod.value,
-                      inputs=(photo, ("--mask", mask)),
-                      tree_height=height, segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES,
-                      foliage=foliage.value, texture_size=texture_size)
+        kw = dict(species=species, leaves=leaves, lod=lod.value, tree_height=height,
+                  segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES, foliage=foliage.value,
+                  texture_size=texture_size)
     else:
         from treeform.methods.envelope.pipeline import reconstruct as api
 
@@ -223,12 +232,22 @@ def reconstruct(
             extra["depth_ratio"] = depth_ratio
         if profile is not None:
             extra["profile"] = profile.value
-        res = run_api(api, photo, mask=mask, out=out, seed=seed, crown=crown.value, inputs=(photo, ("--mask", mask)),
-                      leaves=8000 if leaves is None else leaves, lod=lod.value,
-                      tree_height=10.0 if height is None else height,
-                      segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, foliage=foliage.value,
-                      texture_size=texture_size,
-                      leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)
+        kw = dict(crown=crown.value, leaves=8000 if leaves is None else leaves, lod=lod.value,
+                  tree_height=10.0 if height is None else height,
+                  segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, foliage=foliage.value,
+                  texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)
+    if all_trees:
+        from treeform.cli.progress import print_scene_summary
+        from treeform.methods.scene.pipeline import SCENE_STAGES, reconstruct_all
+
+        kw.pop("stages", None)
+        kw.pop("segmenter", None)  # the trees are found by the network; each crop's mask is its instance
+        kw["tree_height"] = height  # None: the scale comes from --camera-height
+        res = run_api(reconstruct_all, photo, out=out, seed=seed, method_api=api, method=method.value,
+                      camera_height=camera_height, inputs=(photo,), stages=SCENE_STAGES, **kw)
+        print_scene_summary(res)
+        return
+    res = run_api(api, photo, mask=mask, out=out, seed=seed, inputs=(photo, ("--mask", mask)), **kw)
     print_summary(res)
     if report:
         write_report(out, f"treeform reconstruct --method {method.value}: {Path(photo).name}",
@@ -271,12 +290,12 @@ def demo(out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Output 
 
 @app.command("sample-data")
 def sample_data(out: Path = typer.Option(Path("samples"), "--out", "-o", help="Output directory.")):
-    """Write the bundled sample set: photo.jpg, autumn.jpg and library/ (14 RGBA trees) into OUT."""
+    """Write the bundled sample set: photo.jpg, autumn.jpg, library/ (14 RGBA trees) and group.jpg into OUT."""
     from treeform.data import SAMPLE_STAGES, write_sample_data
 
     files = run_api(write_sample_data, out, stages=SAMPLE_STAGES)
     lib = sum(1 for k in files if k.startswith("library/"))
-    typer.echo(f"photo.jpg, autumn.jpg and {lib} library trees in {out}")
+    typer.echo(f"photo.jpg, autumn.jpg, {lib} library trees and group.jpg in {out}")
 
 
 def _register_commands() -> None:

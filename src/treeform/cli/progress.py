@@ -323,6 +323,19 @@ def print_summary(res) -> None:
     _out.print(t)
 
 
+def print_scene_summary(res) -> None:
+    """One table of the trees found in a photo, where each stands, and the written files."""
+    t = Table(show_header=False, box=None)
+    for row in res.metrics["trees"]:
+        x, _, z = row["position_m"]
+        state = row["error"] if row["error"] else f"{row['height_m']:.1f} m tall at x {x:+.1f} m, z {z:+.1f} m"
+        t.add_row(f"tree {row['tree']}", state)
+    t.add_row("camera", f"{res.placement.camera_height:.2f} m above the ground")
+    for name, path in sorted(res.files.items()):
+        t.add_row(name, str(path))
+    _out.print(t)
+
+
 class TrainProgress(_Counted):
     """A progress bar over training steps with the running loss, images/s and time left.
 

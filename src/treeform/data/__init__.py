@@ -6,7 +6,9 @@
 - ``autumn.jpg``: the same photo with its crown turned orange by treeform's season
   recolouring (a reference for ``vary --season``);
 - ``library/``: 14 RGBA trees, treeform's own seven species grown and rendered alone
-  (``scripts/make_sample_library.py``; CC0), exemplars for ``vary``, ``morph`` and ``library``.
+  (``scripts/make_sample_library.py``; CC0), exemplars for ``vary``, ``morph`` and ``library``;
+- ``group.jpg``: three of those trees standing on a lawn (:func:`group_photo`; CC0), the sample
+  of ``reconstruct --all-trees``.
 
 Nothing is downloaded: all of it is in the installed package.
 """
@@ -93,7 +95,28 @@ def write_sample_data(out, *, progress=None) -> dict:
             with atomic_path(dst) as tmp:
                 shutil.copyfile(src, tmp)
             written[f"library/{src.name}"] = dst
+    with timer.stage("group"):
+        with atomic_path(out / "group.jpg") as tmp:
+            Image.fromarray(group_photo()).save(tmp, format="JPEG", quality=92)
+        written["group.jpg"] = out / "group.jpg"
     return written
 
 
-SAMPLE_STAGES = ("photo", "autumn", "library")
+SAMPLE_STAGES = ("photo", "autumn", "library", "group")
+
+GROUP_TREES = (("apple_1.png", -4.5, 15.0, 6.5), ("oak_4.png", 1.0, 19.0, 7.5), ("maple_2.png", 5.5, 16.0, 6.0))
+"""The trees of :func:`group_photo`: library file, metres right of the camera's axis, metres ahead, height."""
+
+
+def group_photo() -> np.ndarray:
+    """A photo of three trees of the library standing on a lawn, 15-19 m from a camera 1.6 m up.
+
+    (720, 960, 3) uint8, the same every time: the sample of ``reconstruct --all-trees``
+    (:func:`treeform.dataset.scenes.group_scene`, 40 degrees vertical field of view; the trees
+    as :data:`GROUP_TREES` places them).
+    """
+    from treeform.dataset.scenes import group_scene, load_cutouts
+
+    sprites = {s.name: s for s in load_cutouts(data_path("library"))}
+    names, x, z, h = zip(*GROUP_TREES)
+    return group_scene([sprites[n] for n in names], np.c_[x, z], h, np.random.default_rng(0))["image"]

@@ -640,3 +640,84 @@ def paste_on_photo(sprite: Sprite, photo: np.ndarray, rng, *, size: int = 512,
     _paste(img, lab, rgba, np.where(sprite.labels > 0, TREE_ANY, 0).astype(np.uint8), hpx, cx, base)
     out = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
     return out, lab > 0
+
+
+def _sprite_foot(a: np.ndarray) -> float:
+    """The column of a tree sprite's foot: in its lowest row, the middle of the opaque run whose
+    piece of the sprite's lower 30 % is largest (the trunk, which carries the tree; a leaf or a
+    twig hanging as low is a small piece of its own there)."""
+    import scipy.ndimage as ndi
+
+    h, w = a.shape
+    rows = np.flatnonzero(a.any(1))
+    if rows.size == 0:
+        return 0.5 * (w - 1)
+    y0 = int(0.7 * (rows[-1] + 1))
+    lab, _ = ndi.label(a[y0:rows[-1] + 1], structure=np.ones((3, 3)))
+    bottom = lab[-1]
+    area = np.bincount(lab.ravel())
+    area[0] = 0
+    best = int(np.argmax(np.where(np.isin(np.arange(len(area)), bottom), area, 0)))
+    return float(np.flatnonzero(bottom == best).mean())
+
+
+def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y: float = 40.0,
+                camera_height: float = 1.6) -> dict:
+    """A photo of several trees standing on flat ground, with each tree's exact pixels and foot.
+
+    The test data of :func:`treeform.segment.instances.find_tree_instances` and of placing the
+    trees it finds (``reconstruct --all-trees``): a level pinhole camera (vertical field of view ``fov_y``)
+    ``camera_height`` metres above the ground looks along the ground; tree ``k`` (``sprites[k]``,
+    ``heights[k]`` metres tall) stands at ``feet[k] = (x, z)``: ``x`` metres to the right, ``z``
+    metres ahead: the sprite's lowest row is pasted at that point's row and its trunk's column
+    (:func:`_sprite_foot`) at its column. Farther
+    trees are pasted first. The ground is a lawn with a little texture, the sky a gradient, the
+    horizon the middle row.
+
+    Parameters
+    ----------
+    sprites : sequence of Sprite
+    feet : array_like, shape (N, 2)
+    heights : array_like, shape (N,)
+    rng : numpy.random.Generator
+    size : (width, height)
+    fov_y, camera_height : float
+
+    Returns
+    -------
+    dict
+        ``image`` (H, W, 3) uint8; ``instances`` (H, W) uint8 (k + 1 where tree k is seen, 0
+        elsewhere); ``feet_px`` (N, 2) (u, v), the pixel of each foot (where its trunk meets the
+        ground); ``tops_px`` (N,) each top row.
+    """
+    W, H = (int(x) for x in size)
+    feet = np.asarray(feet, np.float64).reshape(-1, 2)
+    heights = np.asarray(heights, np.float64).reshape(-1)
+    if len(sprites) != len(feet) or len(heights) != len(feet):
+        raise InputError(f"sprites, feet, heights: expected as many of each, got {len(sprites)}, {len(feet)}, "
+                         f"{len(heights)}")
+    if np.any(feet[:, 1] <= 0) or np.any(heights <= 0):
+        raise InputError("feet: every tree ahead of the camera (z > 0), heights > 0")
+    f = 0.5 * H / np.tan(np.radians(fov_y) / 2)
+    horizon = 0.5 * H
+    rows = np.arange(H, dtype=np.float32)[:, None, None]
+    sky = np.array([0.55, 0.72, 0.92], np.float32) + (rows / H) * np.array([0.25, 0.15, 0.05], np.float32)
+    lawn = (np.array([0.30, 0.45, 0.18], np.float32) * (0.85 + 0.15 * rows / H)
+            + 0.04 * _smooth_noise(rng, H, W, 6.0)[..., None])
+    img = np.ascontiguousarray(np.where(rows < horizon, sky, lawn), np.float32)  # (H, W, 3)
+    lab = np.zeros((H, W), np.uint8)
+    feet_px = np.zeros((len(feet), 2))
+    tops = np.zeros(len(feet))
+    for k in np.argsort(-feet[:, 1]):  # far to near
+        x, z = feet[k]
+        u, v = W / 2 + f * x / z, horizon + f * camera_height / z
+        hpx = f * heights[k] / z
+        rgba = sprites[k].rgba.astype(np.float32) / 255.0
+        fx = _sprite_foot(rgba[..., 3] > 0.5)  # the sprite's trunk column, its lowest row at (u, v)
+        sc = hpx / rgba.shape[0]
+        shift = (0.5 * (rgba.shape[1] - 1) - fx) * sc
+        _paste(img, lab, rgba, None, hpx, u + shift, v + 1.0, label_value=k + 1)
+        tops[k] = v - hpx + 1.0
+        feet_px[k] = (u, v)
+    out = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+    return {"image": out, "instances": lab, "feet_px": feet_px, "tops_px": tops}

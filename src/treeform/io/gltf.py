@@ -197,13 +197,17 @@ class GlbNode:
     ``instances``: (N, 6) rows ``x, y, z, scale, yaw, count`` (:mod:`treeform.render.instances`),
     written with ``EXT_mesh_gpu_instancing`` (TRANSLATION, ROTATION about +Y, uniform SCALE);
     ``unlit``: its materials get ``KHR_materials_unlit`` (colours baked in: billboards, impostor
-    cards); ``name``: the node's name (default the parts' names joined by '+').
+    cards); ``name``: the node's name (default the parts' names joined by '+'); ``translation`` and
+    ``yaw``: the place and turn of a node drawn once (one tree of a group placed from a photo).
     """
 
     mesh: Mesh
     name: str | None = None
     instances: np.ndarray | None = None
     unlit: bool = False
+    translation: tuple | None = None
+    """Where a node drawn once stands (x, y, z), and its turn about +Y in radians (``yaw``)."""
+    yaw: float = 0.0
 
 
 def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
@@ -314,6 +318,16 @@ def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
         name = node.name if node.name is not None else "+".join(p.name for _, p in parts)
         meshes.append({"name": name, "primitives": primitives})
         gnode = {"name": name, "mesh": len(meshes) - 1}
+        if node.translation is not None or node.yaw:
+            if node.instances is not None:
+                raise InputError(f"nodes[{k}]: translation / yaw are for a node drawn once, not instanced")
+            t = np.asarray(node.translation if node.translation is not None else (0.0, 0.0, 0.0), np.float64)
+            if t.shape != (3,) or not np.all(np.isfinite(t)) or not np.isfinite(node.yaw):
+                raise InputError(f"nodes[{k}]: translation must be 3 finite numbers and yaw finite, "
+                                 f"got {node.translation}, {node.yaw}")
+            gnode["translation"] = [float(x) for x in t]
+            if node.yaw:
+                gnode["rotation"] = [0.0, float(np.sin(0.5 * node.yaw)), 0.0, float(np.cos(0.5 * node.yaw))]
         if node.instances is not None:
             from treeform.render.instances import check_instances
 

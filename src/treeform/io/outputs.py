@@ -132,6 +132,12 @@ class StagedOutputs:
         self._stack = ExitStack()
         self._stack.enter_context(shared_textures())
 
+    @property
+    def staging_dir(self) -> Path:
+        """The staging folder: a caller may write whole sub-folders into it from its own thread (e.g. the
+        folders of several runs of a method, each all-or-nothing itself); they move with the commit."""
+        return self._stage
+
     def submit(self, *writers: Callable[[Path], object]) -> "StagedOutputs":
         """Start ``writer(staging_dir)`` for each writer (in a background thread)."""
         if self._done:

@@ -13,7 +13,7 @@ import numpy as np
 from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["segment_tree_learned", "guided_filter", "stand_on_ground"]
+__all__ = ["segment_tree_learned", "tree_probability", "guided_filter", "stand_on_ground"]
 
 MIN_TREE_FRACTION = 0.01
 """A main tree smaller than this share of the photo counts as no tree."""
@@ -192,6 +192,36 @@ def stand_on_ground(tree: np.ndarray, ground: np.ndarray, *, margin: float = 0.0
     return tree & ~flat[lab]
 
 
+def tree_probability(img: np.ndarray, seg_net, *, guided: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The network's class probabilities (H, W, 3) and its tree probability (H, W) at the photo's size.
+
+    With ``guided``, the tree probability's soft edge (the network sees about 320 px) is moved
+    onto the photo's edges by :func:`guided_filter` when the photo is finer than that.
+    ``seg_net`` is a :class:`~treeform.learn.infer.Segmenter`.
+    """
+    p = seg_net.probabilities(img)
+    p_tree = 1.0 - p[..., 0]
+    if guided:
+        p_tree = snap_to_edges(img, p_tree, seg_net.side)
+    return p, p_tree
+
+
+def snap_to_edges(img: np.ndarray, p_tree: np.ndarray, side: int) -> np.ndarray:
+    """A tree probability seen at ``side`` pixels, its soft edge moved onto the photo's edges
+    (:func:`guided_filter`, run at most at :data:`REFINE_SIDE`); unchanged when the photo is not finer."""
+    import cv2
+
+    H, W = img.shape[:2]
+    f = min(1.0, REFINE_SIDE / max(H, W))  # the filter runs at most at REFINE_SIDE
+    guide = img if f == 1.0 else cv2.resize(img, (round(W * f), round(H * f)), interpolation=cv2.INTER_AREA)
+    scale = max(guide.shape[:2]) / side
+    if scale <= 1.2:  # only when the photo is finer than the network's view
+        return p_tree
+    src = p_tree if f == 1.0 else cv2.resize(p_tree, guide.shape[1::-1], interpolation=cv2.INTER_AREA)
+    ref = np.clip(guided_filter(guide, src, radius=max(2, int(round(2 * scale))), eps=2e-3), 0.0, 1.0)
+    return ref if f == 1.0 else cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
+
+
 def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matting",
                          fill_holes: float = HOLE_FRACTION, ground: bool = True, trunk: bool = True) -> Segmentation:
     """Segment the main tree of a photo with the learned network.
@@ -249,19 +279,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
 
     check_choice(refine, "refine", REFINERS)
     seg_net = Segmenter(weights)
-    p = seg_net.probabilities(img)
-    p_tree = 1.0 - p[..., 0]
-    if refine in ("guided", "matting"):
-        import cv2
-
-        H, W = img.shape[:2]
-        f = min(1.0, REFINE_SIDE / max(H, W))  # the filter runs at most at REFINE_SIDE
-        guide = img if f == 1.0 else cv2.resize(img, (round(W * f), round(H * f)), interpolation=cv2.INTER_AREA)
-        src = p_tree if f == 1.0 else cv2.resize(p_tree, guide.shape[1::-1], interpolation=cv2.INTER_AREA)
-        scale = max(guide.shape[:2]) / seg_net.side
-        if scale > 1.2:  # only when the photo is finer than the network's view
-            ref = np.clip(guided_filter(guide, src, radius=max(2, int(round(2 * scale))), eps=2e-3), 0.0, 1.0)
-            p_tree = ref if f == 1.0 else cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
+    p, p_tree = tree_probability(img, seg_net, guided=refine in ("guided", "matting"))
     # the main tree: the largest part, weighted by sharpness (a blurred tree behind loses)
     focus = focus_map(img, seg_net.side)
     tree = main_tree(p_tree > 0.5, focus=focus, link=LINK)

@@ -269,15 +269,10 @@ class ForestResult:
 
 
 def _ground(area):
-    from treeform.structures.mesh import Material, MeshPart
+    from treeform.geometry.ground import ground_plane
 
     w, d = (float(x) * 0.5 + 50.0 for x in area)
-    pos = np.array([[-w, 0, -d], [w, 0, -d], [w, 0, d], [-w, 0, d]], np.float32)
-    part = MeshPart(positions=pos, normals=np.tile([0, 1, 0], (4, 1)).astype(np.float32),
-                    uvs=np.zeros((4, 2), np.float32), colors=np.ones((4, 4), np.float32),
-                    indices=np.array([[0, 2, 1], [0, 3, 2]], np.uint32),
-                    material=Material(name="ground", base_color=(*_GROUND_RGB, 1.0)))
-    return part
+    return ground_plane(-w, w, -d, d, _GROUND_RGB)
 
 
 def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,

@@ -1,0 +1,366 @@
+"""Every tree of a photo, one instance each (issue 16 item 2; seed 003 Fig. 16 crops them by hand).
+
+:func:`find_tree_instances` runs the learned segmenter over the whole photo and over windows
+of it (:func:`all_trees_probability`: the network keeps one main tree per view), groups the
+pieces of the tree mask into clusters (pieces closer than :data:`~treeform.segment.learned.LINK` of the long side, as a
+crown seen through gaps falls apart), and splits each cluster at its trunks:
+
+- a **trunk** rises from a lowest point of the cluster (a foot: nothing of the cluster below
+  it nearby, and not above the photo's ground line) as wood or as a long narrow run of the
+  mask, or is tall upright wood low in the cluster standing in undergrowth, its foot then on
+  the ground line below it (:func:`trunk_feet`); a hanging twig, a crown's lobe or a branch
+  has neither, or has more of its tree below it;
+- two trunks or more in one cluster: the cluster is split between them, each pixel going to
+  the trunk nearest it inside the mask (:func:`split_at_trunks`);
+- each instance's **base** is its trunk's foot (the pixel where the tree meets the ground), or,
+  without a trunk, the bottom centre of its mask; its top is its highest row;
+- instances lower than ``min_height`` of the photo or smaller than ``min_area`` go, and so do
+  blurred ones (median sharpness below ``focus_ratio`` of the sharpest instance's: trees far
+  behind, out of focus).
+
+Functions over arrays; the network is :class:`~treeform.learn.infer.Segmenter`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from treeform._shared.errors import InputError, NoTreeFoundError
+
+__all__ = ["TreeInstance", "find_tree_instances", "all_trees_probability", "split_at_trunks", "trunk_feet"]
+
+NARROW = 0.12
+"""A trunk's rows are at most this share of its cluster's height."""
+
+GROUND_TOLERANCE = 0.01
+"""A foot may stand this share of the photo's height above the ground line
+(:func:`~treeform.segment.classical.ground_line`) in its column, not more."""
+
+
+@dataclass
+class TreeInstance:
+    """One tree of a photo: its pixels, box, the pixel of its foot and its top row."""
+
+    mask: np.ndarray
+    """(H, W) bool, this tree's pixels."""
+    box: tuple
+    """(y0, y1, x0, x1) of the mask, end-exclusive."""
+    base: tuple
+    """(u, v): column and row of the trunk's foot (v: the ground contact, y down)."""
+    top: int
+    """The highest row of the mask."""
+    trunk: bool
+    """Whether ``base`` is a trunk's foot found in the mask (else the mask's bottom centre)."""
+
+    @property
+    def height_px(self) -> float:
+        return float(self.base[1] - self.top + 1)
+
+
+def _runs(mask: np.ndarray) -> np.ndarray:
+    """(H, W) width of the horizontal run of ``mask`` each pixel belongs to (0 outside)."""
+    import scipy.ndimage as ndi
+
+    lab, n = ndi.label(mask, structure=[[0, 0, 0], [1, 1, 1], [0, 0, 0]])
+    if n == 0:
+        return np.zeros(mask.shape, np.int64)
+    width = np.bincount(lab.ravel())
+    width[0] = 0
+    return width[lab]
+
+
+def _run_at(row: np.ndarray, lo: int, hi: int):
+    """The run of True in ``row`` overlapping [lo, hi] most, as (lo, hi) inclusive, or None."""
+    seg = row[max(0, lo - 1):hi + 2]
+    if not seg.any():
+        return None
+    idx = np.flatnonzero(seg) + max(0, lo - 1)
+    c = idx[np.argmin(np.abs(idx - 0.5 * (lo + hi)))]  # the covered pixel nearest the previous run's centre
+    left = c
+    while left > 0 and row[left - 1]:
+        left -= 1
+    right = c
+    while right < len(row) - 1 and row[right + 1]:
+        right += 1
+    return left, right
+
+
+def trunk_feet(mask: np.ndarray, wood: np.ndarray | None = None, *, ground: np.ndarray | None = None,
+               narrow: float = NARROW, min_stem: float = 0.05) -> list[tuple]:
+    """Trunks standing in one cluster of a tree mask, as (marker mask, (u, v) foot) pairs.
+
+    A foot is a lowest point of the cluster (nothing of it below, in a neighbourhood of 1 % of
+    its width) from which a trunk rises: with ``wood`` (the network's wood pixels), wood
+    connected to the foot rises at least ``min_stem`` x the cluster's height above it (within
+    ``narrow`` x that height of the foot's column: a trunk, also one whose crown comes down to
+    the ground, as a pine's); or, traced upward row by row, the run of the mask above the foot
+    stays narrow (at most ``narrow`` x the height) for at least three times that (a trunk the
+    network called foliage). A crown's hanging lobe or twig has little wood rising from it and
+    widens into the crown soon; a branch of a bare tree has more of the tree below it.
+
+    Parameters
+    ----------
+    mask : ndarray, shape (H, W), bool
+        One cluster (one tree or several touching ones).
+    wood : ndarray, shape (H, W), bool, optional
+    ground : ndarray, shape (W,), optional
+        The first ground row of each column (``H``: none;
+        :func:`~treeform.segment.classical.ground_line`). A tree stands on the ground: a lowest
+        point more than :data:`GROUND_TOLERANCE` x H above it in its column (a crown's lobe
+        hanging over the sky or the ground behind) is no foot; a trunk of upright wood that ends
+        above it (in undergrowth that hides its foot) stands on the ground line below.
+    narrow, min_stem : float
+
+    Returns
+    -------
+    list of (ndarray (H, W) bool, (float, float))
+        Left to right; the marker is the traced stem and the wood connected to it within
+        ``narrow`` x height of the foot's column.
+
+    Examples
+    --------
+    Two crowns on two trunks, touching:
+
+    >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[8:32, 35:75] = True
+    >>> m[30:55, 23:27] = True; m[32:50, 53:57] = True
+    >>> [foot for _, foot in trunk_feet(m)]
+    [(24.5, 54.0), (54.5, 49.0)]
+    """
+    import scipy.ndimage as ndi
+
+    mask = np.asarray(mask, bool)
+    if mask.ndim != 2:
+        raise InputError(f"mask: expected an (H, W) array, got shape {mask.shape}")
+    rows = np.flatnonzero(mask.any(1))
+    if rows.size == 0:
+        return []
+    cols = np.flatnonzero(mask.any(0))
+    height = float(rows[-1] - rows[0] + 1)
+    narrow_px = max(3.0, narrow * height)
+    H, W = mask.shape
+    bottom = np.where(mask.any(0), H - 1 - np.argmax(mask[::-1], axis=0), -1).astype(np.float64)
+    d = max(2, int(round(0.01 * (cols[-1] - cols[0] + 1))))
+    local = ndi.maximum_filter1d(bottom, 2 * d + 1, mode="constant", cval=-1)
+    is_low = (bottom >= 0) & (bottom >= local)
+    wood_lab = ndi.label(wood & mask, structure=np.ones((3, 3)))[0] if wood is not None else None
+    feet = []
+    edges = np.flatnonzero(np.diff(np.r_[0, is_low.astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2]):  # plateaus of lowest columns [a, b)
+        seg = np.arange(a, b)
+        v = int(bottom[seg].max())
+        seg = seg[bottom[seg] == v]
+        u = int(seg[len(seg) // 2])
+        run = _run_at(mask[v], u, u)
+        stem = []
+        r = v
+        while run is not None and run[1] - run[0] + 1 <= narrow_px and r >= rows[0]:
+            stem.append((r, run[0], run[1]))
+            r -= 1
+            run = _run_at(mask[r], *run) if r >= 0 else None
+        marker = np.zeros_like(mask)
+        for rr, lo, hi in stem:
+            marker[rr, lo:hi + 1] = True
+        rise, touching = 0, np.zeros(0, np.int64)
+        if wood_lab is not None:
+            k = max(3, int(round(0.03 * height)))
+            lo, hi = int(u - narrow_px / 2), int(u + narrow_px / 2) + 1
+            touching = np.unique(wood_lab[max(0, v - k):v + 1, max(0, lo):hi])
+            touching = touching[touching > 0]
+            if touching.size:  # the trunk goes on up as wood; its branches spreading sideways are left out
+                band = np.zeros_like(mask)
+                band[:, max(0, int(u - narrow_px)):int(u + narrow_px) + 1] = True
+                up = np.isin(wood_lab, touching) & band
+                rise = v - int(np.flatnonzero(up.any(1))[0])
+                marker |= up
+        # a trunk: wood rising from the foot, or a long narrow stem (a trunk the network called foliage);
+        # a hanging twig or a crown's lobe has neither
+        if ground is not None and ground[u] < H and v < ground[u] - GROUND_TOLERANCE * H:
+            continue
+        if rise >= min_stem * height or len(stem) >= 3 * min_stem * height:
+            if marker.any():
+                feet.append((marker, (float(seg.mean()), float(v)), set(touching.tolist())))
+    if wood_lab is not None:  # trunks standing in undergrowth: tall, upright, narrow wood, low in the cluster
+        for k, sl in enumerate(ndi.find_objects(wood_lab), start=1):
+            if sl is None:
+                continue
+            comp = wood_lab[sl] == k
+            h_k, w_k = comp.shape
+            widths = comp.sum(1)
+            y1 = sl[0].stop - 1
+            if (h_k < 0.2 * height or h_k < 2 * w_k or np.median(widths[widths > 0]) > narrow_px
+                    or y1 < rows[0] + 0.65 * height):
+                continue
+            u = float(np.flatnonzero(comp[-1]).mean()) + sl[1].start
+            if any(abs(u - f[0]) <= narrow_px for _, f, _ in feet):
+                continue
+            full = np.zeros_like(mask)
+            full[sl] = comp
+            g = ground[int(round(u))] if ground is not None else H
+            foot_v = float(g) if g < H and y1 < g - GROUND_TOLERANCE * H else float(y1)
+            feet.append((full, (u, foot_v), {k}))
+    # a branch's end whose wood runs on to a lower foot is that tree's branch, not a tree of its own
+    feet = [(m, f) for m, f, w in feet
+            if not any(w & w2 and f2[1] > f[1] + 1 for _, f2, w2 in feet)]
+    feet.sort(key=lambda t: t[1][0])
+    merged: list = []  # two lowest points of one trunk's foot (a fork, a root flare) are one foot
+    for comp, foot in feet:
+        if merged and abs(foot[0] - merged[-1][1][0]) <= narrow_px:
+            prev, pfoot = merged[-1]
+            merged[-1] = (prev | comp, pfoot if pfoot[1] >= foot[1] else foot)
+        else:
+            merged.append((comp, foot))
+    return merged
+
+
+def split_at_trunks(mask: np.ndarray, trunks: list) -> list[np.ndarray]:
+    """Split one cluster between its trunks: each pixel goes to the trunk nearest it inside the mask.
+
+    The trunks' markers grow together, one pixel ring at a time, through the cluster (a
+    watershed of a flat relief: a geodesic Voronoi partition), so two crowns that touch part
+    along the line halfway between their trunks. A thin trunk and a thick one grow alike (a
+    watershed of the distance transform lets the trunk that reaches deepest into the crowns
+    take them all). With fewer than two trunks the cluster is one tree.
+
+    >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[8:32, 35:75] = True
+    >>> m[30:55, 23:27] = True; m[32:50, 53:57] = True
+    >>> parts = split_at_trunks(m, trunk_feet(m))
+    >>> [int(p.sum()) for p in parts], bool(parts[0][20, 10] and parts[1][20, 70])
+    ([1009, 903], True)
+    """
+    from skimage.segmentation import watershed
+
+    mask = np.asarray(mask, bool)
+    if len(trunks) < 2:
+        return [mask]
+    markers = np.zeros(mask.shape, np.int32)
+    for k, (comp, _) in enumerate(trunks, start=1):
+        markers[comp & mask & (markers == 0)] = k
+    lab = watershed(np.zeros(mask.shape, np.float32), markers, mask=mask)
+    return [lab == k for k in range(1, len(trunks) + 1)]
+
+
+def _windows(length: int, side: int, stride: float) -> np.ndarray:
+    """Starts of windows of ``side`` along ``length`` at most ``stride`` apart, the last flush with the end."""
+    if length <= side:
+        return np.zeros(1, np.int64)
+    return np.unique(np.linspace(0, length - side, int(np.ceil((length - side) / stride)) + 1).round().astype(np.int64))
+
+
+def all_trees_probability(img: np.ndarray, seg_net) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) probabilities that a pixel is any tree, not only the photo's main one, and that it is wood.
+
+    The network was trained to keep one tree per photo (the main one; neighbours at the frame's
+    edges and trees behind are background), so each tree must be the main one of some view: the
+    photo is seen whole, by squares of its short side (a quarter of their side apart) and by
+    squares of 0.6 of it (half their side apart), and each pixel keeps its highest tree (and
+    wood) probability over the views that hold it.
+    """
+    H, W = img.shape[:2]
+    p = seg_net.probabilities(img)
+    acc, wood = 1.0 - p[..., 0], p[..., 2].copy()
+    for frac, step in ((1.0, 0.25), (0.6, 0.5)):
+        side = max(8, int(round(frac * min(H, W))))
+        for y in _windows(H, side, step * side):
+            for x in _windows(W, side, step * side):
+                if side >= max(H, W):  # the whole photo, seen already
+                    continue
+                p = seg_net.probabilities(img[y:y + side, x:x + side])
+                np.maximum(acc[y:y + side, x:x + side], 1.0 - p[..., 0], out=acc[y:y + side, x:x + side])
+                np.maximum(wood[y:y + side, x:x + side], p[..., 2], out=wood[y:y + side, x:x + side])
+    return acc, wood
+
+
+def _instance(mask: np.ndarray, foot) -> TreeInstance:
+    ys, xs = np.nonzero(mask)
+    y0, y1, x0, x1 = int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1
+    if foot is None:
+        low = ys >= y1 - 1 - max(1, round(0.03 * (y1 - y0)))
+        foot = (float(np.median(xs[low])), float(y1 - 1))
+    return TreeInstance(mask, (y0, y1, x0, x1), (float(foot[0]), float(foot[1])), y0, foot is not None)
+
+
+def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 0.12, min_area: float = 0.004,
+                        focus_ratio: float = 0.35, ground: bool = False) -> list[TreeInstance]:
+    """Every tree of an RGB photo as its own mask with the pixel of its foot, left to right.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    weights : path, optional
+        Segmentation ONNX weights (default: the shipped ones).
+    min_height : float
+        Instances lower than this share of the photo's height are dropped.
+    min_area : float
+        Instances smaller than this share of the photo are dropped.
+    focus_ratio : float
+        Instances whose median sharpness is below this share of the sharpest one's are
+        dropped (out-of-focus trees far behind).
+    ground : bool
+        Cut what the mask holds below the photo's ground line but for the trunks' feet
+        (:func:`~treeform.segment.learned.stand_on_ground`).
+
+    Returns
+    -------
+    list of TreeInstance
+
+    Raises
+    ------
+    InputError
+        ``image`` is not an (H, W, 3) uint8 array of at least 8 x 8 pixels.
+    NoTreeFoundError
+        No instance is left.
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.learn.infer import Segmenter, focus_map
+    from treeform.segment.learned import LINK, snap_to_edges, stand_on_ground
+
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got shape {img.shape} {img.dtype}")
+    if min(img.shape[:2]) < 8:
+        raise InputError(f"image: expected at least 8 x 8 pixels, got {img.shape[1]} x {img.shape[0]}")
+    H, W = img.shape[:2]
+    seg_net = Segmenter(weights)
+    from treeform.segment.classical import ground_line
+
+    p_any, p_wood = all_trees_probability(img, seg_net)
+    p_tree = snap_to_edges(img, p_any, seg_net.side)
+    tree = p_tree > 0.5
+    wood = p_wood > 0.5 * p_any  # wood more likely than foliage
+    g = ground_line(img)
+    if ground:
+        tree = stand_on_ground(tree, g)
+    specks, n_sp = ndi.label(tree, structure=np.ones((3, 3)))  # specks go; a trunk one pixel wide stays whole
+    if n_sp:
+        area = np.bincount(specks.ravel())
+        area[0] = 0
+        tree = area[specks] >= max(4, 2e-5 * H * W)
+    r = max(1, int(round(LINK * max(H, W))))
+    import cv2
+
+    near = cv2.dilate(tree.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
+    clusters, n = ndi.label(near, structure=np.ones((3, 3)))
+    clusters = np.where(tree, clusters, 0)
+    found = []
+    for k in range(1, n + 1):
+        cl = clusters == k
+        if cl.sum() < min_area * H * W:
+            continue
+        trunks = trunk_feet(cl, wood, ground=g)
+        if len(trunks) >= 2:
+            parts = split_at_trunks(cl, trunks)
+            found += [(part, foot) for part, (_, foot) in zip(parts, trunks) if part.any()]
+        else:
+            found.append((cl, trunks[0][1] if trunks else None))
+    inst = [_instance(m, foot) for m, foot in found]
+    inst = [t for t in inst if t.height_px >= min_height * H and t.mask.sum() >= min_area * H * W]
+    if len(inst) > 1 and focus_ratio > 0:
+        focus = focus_map(img, seg_net.side)
+        sharp = np.array([float(np.median(focus[t.mask])) for t in inst])
+        inst = [t for t, s in zip(inst, sharp) if s >= focus_ratio * sharp.max()]
+    if not inst:
+        raise NoTreeFoundError("no tree found in the photo")
+    return sorted(inst, key=lambda t: t.base[0])

@@ -1,0 +1,151 @@
+"""Several trees in one photo: instances, their placement on the ground, `reconstruct --all-trees` (issue 16 item 2)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from treeform._shared.errors import InputError
+from treeform.methods.scene.placement import place_on_ground
+from treeform.segment.instances import split_at_trunks, trunk_feet
+
+from treeform.data import GROUP_TREES
+
+EXE = Path(sys.executable).parent / "treeform"
+FEET = np.array([(x, z) for _, x, z, _ in GROUP_TREES])  # x right, z ahead (m); at least 5 m apart
+HEIGHTS = np.array([h for *_, h in GROUP_TREES])
+
+
+@pytest.fixture(scope="module")
+def group():
+    """The sample group photo (three library trees 15-19 m ahead of a level camera 1.6 m up) and its truth."""
+    from treeform.data import data_path, group_photo
+    from treeform.dataset.scenes import group_scene, load_cutouts
+
+    sprites = {s.name: s for s in load_cutouts(data_path("library"))}
+    truth = group_scene([sprites[n] for n, *_ in GROUP_TREES], FEET, HEIGHTS, np.random.default_rng(0))
+    assert np.array_equal(truth["image"], group_photo())
+    return truth
+
+
+def test_feet_are_where_trunks_meet_the_ground_not_where_a_crown_hangs():
+    m = np.zeros((80, 100), bool)
+    m[5:40, 10:90] = True       # one wide crown over two trunks
+    m[40:70, 28:32] = True      # trunk 1
+    m[40:66, 68:72] = True      # trunk 2
+    m[38:50, 76:92] = True      # a hanging lobe at the crown's edge: wide at once above its lowest point
+    m[40:52, 44:56] = True      # a low bulge of the crown between the trunks
+    feet = trunk_feet(m)
+    assert [f for _, f in feet] == [(29.5, 69.0), (69.5, 65.0)]
+    left, right = split_at_trunks(m, feet)
+    assert left[20, 12] and right[20, 88] and not (left & right).any() and ((left | right) == m).all()
+    wood = np.zeros_like(m)
+    wood[20:50, 82:86] = True   # ... unless wood rises from the lobe: a trunk in front of the crown
+    assert len(trunk_feet(m, wood)) == 3
+
+
+def test_the_ground_placement_puts_every_foot_back_on_its_pixel():
+    rng = np.random.default_rng(3)
+    feet = np.c_[rng.uniform(50, 590, 6), rng.uniform(250, 470, 6)]
+    tops = feet[:, 1] - rng.uniform(60, 200, 6)
+    p = place_on_ground(feet, tops, 640, 480, camera_height=1.7)
+    uv = p.camera.project(p.positions)[:, :2]
+    assert np.abs(uv - feet).max() < 1e-3 and np.allclose(p.positions[:, 1], 0)
+    assert abs(p.camera.position[1] - 1.7) < 1e-9 and np.allclose(p.positions[p.reference], 0)
+    tops_uv = p.camera.project(p.positions + np.c_[np.zeros(6), p.heights, np.zeros(6)])[:, 1]
+    assert np.abs(tops_uv - (tops - 1)).max() < 1.0  # each top row, from the tree's height
+    # a given tree height sets the scale instead: everything scales with it
+    q = place_on_ground(feet, tops, 640, 480, main_height=2 * p.heights[p.reference])
+    assert np.allclose(q.positions, 2 * p.positions) and abs(q.camera_height - 3.4) < 1e-9
+    with pytest.raises(InputError, match="top"):
+        place_on_ground([[10, 100]], [120], 640, 480)
+
+
+def test_every_tree_of_a_group_is_found_and_placed_within_a_tenth_of_their_spacing(group):
+    from treeform.segment.instances import find_tree_instances
+
+    inst = find_tree_instances(group["image"])
+    assert len(inst) == 3
+    feet = np.array([t.base for t in inst])
+    order = np.argsort(group["feet_px"][:, 0])
+    assert np.abs(feet - group["feet_px"][order]).max() < 0.02 * 960
+    overlap = [(t.mask & (group["instances"] == k + 1)).sum() / t.mask.sum() for t, k in zip(inst, order)]
+    assert min(overlap) > 0.7  # each instance is mostly its own tree (crowns that touch split halfway)
+    p = place_on_ground(feet, [t.top for t in inst], 960, 720, camera_height=1.6)
+    ref = order[p.reference]
+    truth = np.c_[FEET[:, 0] - FEET[ref, 0], np.zeros(3), FEET[ref, 1] - FEET[:, 1]][order]
+    spacing = min(np.linalg.norm(FEET[i] - FEET[j]) for i in range(3) for j in range(i))
+    assert np.linalg.norm(p.positions - truth, axis=1).max() < 0.1 * spacing
+    assert np.abs(p.heights - HEIGHTS[order]).max() < 0.1 * HEIGHTS.min()
+
+
+@pytest.fixture(scope="module")
+def scene_run(group, tmp_path_factory):
+    from PIL import Image
+
+    tmp = tmp_path_factory.mktemp("scene")
+    Image.fromarray(group["image"]).save(tmp / "group.png")
+    proc = subprocess.run([str(EXE), "reconstruct", str(tmp / "group.png"), "--all-trees", "--leaves", "1500",
+                           "--lod", "low", "--out", str(tmp / "out")], capture_output=True, text=True, timeout=600)
+    return proc, tmp / "out"
+
+
+def test_reconstruct_all_trees_writes_a_placed_scene(scene_run):
+    import trimesh
+
+    proc, out = scene_run
+    assert proc.returncode == 0, proc.stderr
+    meta = json.loads((out / "scene.json").read_text())
+    assert meta["trees_found"] == meta["trees_reconstructed"] == 3
+    for row in meta["trees"]:
+        assert (out / row["folder"] / "tree.glb").is_file() and (out / row["folder"] / "preview.png").is_file()
+    assert (out / "preview.png").is_file()
+    gltf = json.loads(_glb_json(out / "scene.glb"))
+    nodes = {n["name"]: n for n in gltf["nodes"]}
+    for row in meta["trees"]:  # each tree's node stands where scene.json says, turned to the camera
+        node = nodes[f"tree_{row['tree']}"]
+        assert np.allclose(node.get("translation", [0, 0, 0]), row["position_m"], atol=1e-3)
+        yaw = 2 * np.degrees(np.arctan2(node.get("rotation", [0, 0, 0, 1])[1], node.get("rotation", [0, 0, 0, 1])[3]))
+        assert abs(yaw - row["yaw_deg"]) < 0.01
+    scene = trimesh.load(out / "scene.glb")
+    assert len(scene.geometry) >= 3
+    lo, hi = scene.bounds
+    assert lo[1] > -0.5 and hi[1] > 5.0  # on the ground, trees several metres tall
+
+
+def test_the_scene_glb_passes_the_khronos_validator(scene_run, khronos_report):
+    report = khronos_report(scene_run[1] / "scene.glb")
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+
+
+def test_all_trees_refuses_a_mask_and_finds_nothing_in_a_wall(tmp_path):
+    from PIL import Image
+
+    wall = np.full((240, 320, 3), (150, 120, 100), np.uint8)
+    wall[::12] = 90  # mortar lines
+    Image.fromarray(wall).save(tmp_path / "wall.png")
+    proc = subprocess.run([str(EXE), "reconstruct", str(tmp_path / "wall.png"), "--all-trees", "--mask",
+                           str(tmp_path / "wall.png"), "--out", str(tmp_path / "a")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.strip().startswith("error: --mask") and len(proc.stderr.splitlines()) == 1
+    proc = subprocess.run([str(EXE), "reconstruct", str(tmp_path / "wall.png"), "--all-trees", "--out",
+                           str(tmp_path / "b")], capture_output=True, text=True)
+    assert proc.returncode != 0 and "no tree found" in proc.stderr.splitlines()[-1]
+    assert "Traceback" not in proc.stderr and not (tmp_path / "b").exists()
+
+
+def _glb_json(path: Path) -> str:
+    import struct
+
+    data = path.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    return data[20:20 + n].decode()
+
+
+if shutil.which(str(EXE)) is None and not EXE.exists():  # pragma: no cover - the console script is installed
+    pytest.skip("treeform console script missing", allow_module_level=True)
