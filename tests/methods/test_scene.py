@@ -137,6 +137,9 @@ def test_all_trees_refuses_a_mask_and_finds_nothing_in_a_wall(tmp_path):
                            str(tmp_path / "b")], capture_output=True, text=True)
     assert proc.returncode != 0 and "no tree found" in proc.stderr.splitlines()[-1]
     assert "Traceback" not in proc.stderr and not (tmp_path / "b").exists()
+    proc = subprocess.run([str(EXE), "reconstruct", str(tmp_path / "wall.png"), "--camera-height", "2",
+                           "--out", str(tmp_path / "c")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.strip() == "error: --camera-height works with --all-trees"
 
 
 def _glb_json(path: Path) -> str:

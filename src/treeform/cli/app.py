@@ -171,13 +171,17 @@ def reconstruct(
     all_trees: bool = typer.Option(False, "--all-trees", help="Every tree of the photo: each found, reconstructed "
                                    "from its own crop into OUT/tree_K/, and placed on a common ground plane from "
                                    "where its trunk meets the ground (OUT/scene.glb, scene.json, preview.png)."),
-    camera_height: float = typer.Option(1.6, "--camera-height", min=0.1, max=500.0,
-                                        help="--all-trees: metres from the ground to the camera (the scene's "
-                                             "scale, unless --height gives the tallest tree's)."),
+    camera_height: Optional[float] = typer.Option(None, "--camera-height", min=0.1, max=500.0,
+                                                  help="--all-trees: metres from the ground to the camera (default "
+                                                       "1.6; the scene's scale, unless --height gives the tallest "
+                                                       "tree's)."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
 
+    if camera_height is not None and not all_trees:
+        typer.echo("error: --camera-height works with --all-trees", err=True)
+        raise typer.Exit(2)
     if all_trees and (mask is not None or report or impostor):
         bad = [n for n, v in (("--mask", mask), ("--report", report), ("--impostor", impostor)) if v]
         typer.echo(f"error: {', '.join(bad)}: not with --all-trees (each tree's mask comes from the photo)", err=True)
@@ -244,7 +248,8 @@ def reconstruct(
         kw.pop("segmenter", None)  # the trees are found by the network; each crop's mask is its instance
         kw["tree_height"] = height  # None: the scale comes from --camera-height
         res = run_api(reconstruct_all, photo, out=out, seed=seed, method_api=api, method=method.value,
-                      camera_height=camera_height, inputs=(photo,), stages=SCENE_STAGES, **kw)
+                      camera_height=1.6 if camera_height is None else camera_height, inputs=(photo,),
+                      stages=SCENE_STAGES, **kw)
         print_scene_summary(res)
         return
     res = run_api(api, photo, mask=mask, out=out, seed=seed, inputs=(photo, ("--mask", mask)), **kw)
