@@ -21,7 +21,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = ".venv/bin/treeform"
 # shorter runs of the slow commands: appended options override the README's values
-SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2"], ("train", "species"): ["--epochs", "1"],
+SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2", "--test-scenes", "8"], ("train", "species"): ["--epochs", "1"],
            ("train", "rbv"): ["--epochs", "1"]}
 
 

@@ -47,6 +47,8 @@ def seg_cmd(
                                     "thin trees weigh as much as large crowns)."),
     repeats: int = typer.Option(2, "--repeats", help="Passes (with flips) over each round's composed scenes; more "
                                 "when the optimiser outruns the scene composition (a GPU)."),
+    test_scenes: int = typer.Option(400, "--test-scenes", min=2, max=100000,
+                                    help="Scenes of the fixed test split scored at the end."),
 ):
     """Segmentation network (background / foliage / wood); resumes from OUT/checkpoint.pt."""
     from treeform.cli.progress import TrainProgress
@@ -56,7 +58,7 @@ def seg_cmd(
                 seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
                 fine_stride=fine_stride, refine=refine, photo_tree_fraction=photo_trees, noise_negatives=noise,
                 size=size, width=width, repeats=repeats, bush_fraction=bushes, sparse_boost=sparse_boost,
-                tree_dice=tree_dice, display=TrainProgress("seg"),
+                tree_dice=tree_dice, test_scenes=test_scenes, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),
                         ("--init", init)))
     r, c = m.get("renders"), m.get("cutouts")

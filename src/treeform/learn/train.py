@@ -95,6 +95,8 @@ class SegTrainConfig:
     """Where the network trains: 'cpu', 'cuda' or 'auto' (cuda when torch sees one)."""
     workers: int = 0
     """Processes composing rounds ahead of the optimiser (0 = in line; the scenes are the same either way)."""
+    test_scenes: int = 400
+    """Scenes of the fixed test split scored at the end (half renders, half cut-outs when both exist)."""
 
     @classmethod
     def from_dict(cls, d: dict) -> "SegTrainConfig":
@@ -138,7 +140,7 @@ def _partial_ce(logits, labels, wood_weight: float, tree_dice: float = 0.0):
     return loss
 
 
-_RUNTIME_ONLY = ("threads", "device", "workers", "checkpoint_every")
+_RUNTIME_ONLY = ("threads", "device", "workers", "checkpoint_every", "test_scenes")
 """Settings that change where and how fast a run goes, not what it learns (a resume may change them)."""
 
 
@@ -349,7 +351,7 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         from treeform.learn.infer import Segmenter
 
         seg = Segmenter(onnx_path)
-        metrics.update(evaluate_segmenter(lambda im: seg.predict_labels(im, keep_main=False), test_scenes(test_r, test_c, size=cfg.size)))
+        metrics.update(evaluate_segmenter(lambda im: seg.predict_labels(im, keep_main=False), test_scenes(test_r, test_c, n=cfg.test_scenes, size=cfg.size)))
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     return metrics
 
