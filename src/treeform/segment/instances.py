@@ -273,12 +273,21 @@ def all_trees_probability(img: np.ndarray, seg_net) -> tuple[np.ndarray, np.ndar
 
 
 def _instance(mask: np.ndarray, foot) -> TreeInstance:
+    """The instance of ``mask`` standing on ``foot`` (a trunk's), or, with None, on its bottom centre.
+
+    >>> m = np.zeros((10, 10), bool); m[2:8, 3:7] = True
+    >>> t = _instance(m, None); t.trunk, t.base, t.top
+    (False, (4.5, 7.0), 2)
+    >>> _instance(m, (5.0, 7.0)).trunk
+    True
+    """
     ys, xs = np.nonzero(mask)
     y0, y1, x0, x1 = int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1
-    if foot is None:
+    trunk = foot is not None
+    if not trunk:
         low = ys >= y1 - 1 - max(1, round(0.03 * (y1 - y0)))
         foot = (float(np.median(xs[low])), float(y1 - 1))
-    return TreeInstance(mask, (y0, y1, x0, x1), (float(foot[0]), float(foot[1])), y0, foot is not None)
+    return TreeInstance(mask, (y0, y1, x0, x1), (float(foot[0]), float(foot[1])), y0, trunk)
 
 
 def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 0.12, min_area: float = 0.004,

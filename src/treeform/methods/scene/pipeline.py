@@ -164,12 +164,11 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
     TreeformError
         Every tree's reconstruction failed (the first reason).
     """
+    from treeform._shared.checks import check_height, check_int
     from treeform.io.outputs import check_out_dir
     from treeform.methods._single_photo import as_photo, fit_photo
     from treeform.methods.scene.placement import place_on_ground
     from treeform.segment.instances import find_tree_instances
-
-    from treeform._shared.checks import check_height, check_int
 
     if tree_height is not None:
         check_height(tree_height)
