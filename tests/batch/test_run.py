@@ -102,3 +102,31 @@ def test_a_batch_on_a_separately_started_scheduler_and_workers(tmp_path, folder,
     assert "1 of 2 photos reconstructed" in run.stdout and "1 failed" in run.stdout
     assert (out / "good" / "tree.glb").is_file()
     assert [f["photo"] for f in json.loads((out / "failures.json").read_text())] == ["truncated.jpg"]
+
+
+@pytest.mark.parametrize("crashes, status", [(1, "done"), (2, "failed")])
+def test_a_crashed_child_is_run_once_more(tmp_path, monkeypatch, crashes, status):
+    """A reconstruction that dies by a signal the watch did not send (a native crash) is retried
+    once: one crash is the machine's, two are the photo's. A kill by the watch is not retried."""
+    from treeform.batch import run as run_mod
+
+    calls = []
+
+    def fake(cmd, tmp, deadline, timeout, memory_limit):
+        calls.append(cmd)
+        if len(calls) <= crashes:
+            return "killed by signal 11", -11, False
+        tmp.mkdir(parents=True)
+        (tmp / "metrics.json").write_text(json.dumps({"iou": 0.9}))
+        return None, 0, False
+
+    monkeypatch.setattr(run_mod, "_attempt", fake)
+    res = run_mod.reconstruct_one(str(SAMPLE), str(tmp_path / "t"))
+    assert res["status"] == status and res["attempts"] == 2 and len(calls) == 2
+    if status == "done":
+        assert res["metrics"] == {"iou": 0.9} and (tmp_path / "t" / "metrics.json").is_file()
+    else:
+        assert res["reason"] == "killed by signal 11 (twice)" and not (tmp_path / "t").exists()
+    calls.clear()
+    monkeypatch.setattr(run_mod, "_attempt", lambda *a: (calls.append(a), ("timed out after 1 s", -9, True))[1])
+    assert run_mod.reconstruct_one(str(SAMPLE), str(tmp_path / "u"))["attempts"] == 1 and len(calls) == 1

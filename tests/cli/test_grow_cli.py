@@ -95,4 +95,4 @@ def test_a_negative_seed_is_one_clear_line(tmp_path, verb):
     args = ["--species", "oak"] if verb == "grow" else [str(sample)]
     proc = cli(verb, *args, "--seed", "-5", "--out", tmp_path / "o")
     assert_clean_failure(proc, tmp_path / "o")
-    assert "seed: expected a non-negative integer, got -5" in proc.stderr
+    assert "Invalid value for '--seed'" in proc.stderr  # the option's range, checked before anything runs

@@ -87,6 +87,27 @@ def check_int(value, name: str, lo: int, hi: int) -> int:
     return int(value)
 
 
+def check_range(value, name: str, lo: float, hi: float) -> float:
+    """Return ``value`` as a float after checking it is a finite number in ``[lo, hi]``.
+
+    Examples
+    --------
+    >>> check_range("0.25", "share", 0, 1)
+    0.25
+    >>> check_range(float("nan"), "share", 0, 1)
+    Traceback (most recent call last):
+    ...
+    treeform._shared.errors.InputError: share: expected a number in [0, 1], got nan
+    """
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if isinstance(value, bool) or not np.isfinite(v) or not lo <= v <= hi:
+        raise InputError(f"{name}: expected a number in [{lo:g}, {hi:g}], got {value!r}")
+    return v
+
+
 def check_choice(value, name: str, choices) -> str:
     """Return ``value`` after checking it is one of ``choices``."""
     if value not in choices:

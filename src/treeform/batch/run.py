@@ -109,21 +109,10 @@ def _kill_tree(proc) -> None:
     proc.wait()
 
 
-def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: int = 0, timeout: float = 600.0,
-                    memory_limit: int = 0, options=()) -> dict:
-    """Reconstruct one photo into ``folder`` in a child process, killed past ``timeout`` s or ``memory_limit`` bytes.
-
-    Returns
-    -------
-    dict
-        ``status`` ("done" or "failed"), ``seconds``, and ``reason`` (failed) or ``metrics``
-        (done: :data:`KEY_METRICS` from the photo's metrics.json).
-    """
-    out, tmp = Path(folder), Path(str(folder) + ".partial")
+def _attempt(cmd: list, tmp: Path, deadline: float, timeout: float, memory_limit: int) -> tuple:
+    """Run ``cmd`` once, killed at ``deadline`` (``time.perf_counter()``) or past ``memory_limit``
+    bytes; returns ``(reason or None, returncode, killed_by_this_watch)``."""
     shutil.rmtree(tmp, ignore_errors=True)
-    cmd = [sys.executable, "-m", "treeform", "reconstruct", str(photo), "--out", str(tmp), "--method", method,
-           "--seed", str(int(seed)), *map(str, options)]
-    t0 = time.perf_counter()
     reason = None
     with subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                           env=dict(os.environ, TERM="dumb")) as proc:
@@ -131,7 +120,7 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
         reader = threading.Thread(target=lambda: err.append(proc.stderr.read()), daemon=True)
         reader.start()
         while proc.poll() is None:
-            if time.perf_counter() - t0 > timeout:
+            if time.perf_counter() > deadline:
                 reason = f"timed out after {timeout:g} s"
             elif memory_limit and _rss(proc) > memory_limit:
                 reason = f"out of memory: over the {memory_limit / 1e9:.3g} GB limit"
@@ -140,18 +129,50 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
                 break
             time.sleep(0.05)
         reader.join(timeout=5)
+    if reason is not None:
+        return reason, proc.returncode, True
+    if proc.returncode != 0:
+        return _reason("".join(e for e in err if e), proc.returncode), proc.returncode, False
+    if not (tmp / "metrics.json").is_file():
+        return "the reconstruction wrote no metrics.json", proc.returncode, False
+    return None, 0, False
+
+
+def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: int = 0, timeout: float = 600.0,
+                    memory_limit: int = 0, options=()) -> dict:
+    """Reconstruct one photo into ``folder`` in a child process, killed past ``timeout`` s or ``memory_limit`` bytes.
+
+    A child that crashes (ends by a signal it was not sent by this watch, e.g. a segmentation
+    fault in a native library under load) is run once more before the photo is recorded as
+    failed: one crash is the machine's, two are the photo's.
+
+    Returns
+    -------
+    dict
+        ``status`` ("done" or "failed"), ``seconds``, ``attempts``, and ``reason`` (failed)
+        or ``metrics`` (done: :data:`KEY_METRICS` from the photo's metrics.json).
+    """
+    out, tmp = Path(folder), Path(str(folder) + ".partial")
+    cmd = [sys.executable, "-m", "treeform", "reconstruct", str(photo), "--out", str(tmp), "--method", method,
+           "--seed", str(int(seed)), *map(str, options)]
+    t0 = time.perf_counter()
+    attempts = 0
+    while True:
+        attempts += 1
+        reason, code, ours = _attempt(cmd, tmp, t0 + timeout, timeout, memory_limit)
+        if reason is None or ours or code >= 0 or attempts == 2:
+            break
     seconds = round(time.perf_counter() - t0, 3)
-    if reason is None and proc.returncode != 0:
-        reason = _reason("".join(e for e in err if e), proc.returncode)
-    if reason is None and not (tmp / "metrics.json").is_file():
-        reason = "the reconstruction wrote no metrics.json"
     if reason is not None:
         shutil.rmtree(tmp, ignore_errors=True)
-        return {"status": "failed", "reason": reason, "seconds": seconds}
+        if attempts == 2:
+            reason += " (twice)"
+        return {"status": "failed", "reason": reason, "seconds": seconds, "attempts": attempts}
     shutil.rmtree(out, ignore_errors=True)
     tmp.rename(out)
     m = json.loads((out / "metrics.json").read_text())
-    return {"status": "done", "seconds": seconds, "metrics": {k: m[k] for k in KEY_METRICS if k in m}}
+    return {"status": "done", "seconds": seconds, "attempts": attempts,
+            "metrics": {k: m[k] for k in KEY_METRICS if k in m}}
 
 
 def _failures(manifest: dict) -> list:
@@ -206,11 +227,15 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     if method not in METHODS or method in ("variations",):
         known = ", ".join(k for k in METHODS if k != "variations")
         raise InputError(f"method: expected one of {known}, got {method!r}")
+    from treeform._shared.checks import check_int, check_range
+    from treeform._shared.cluster import check_cluster
+
     photos = list_photos(input_dir)
-    if workers is not None and int(workers) < 0:
-        raise InputError(f"workers: expected 0 or more, got {workers}")
+    check_cluster(workers, scheduler)
+    check_int(seed, "seed", 0, 2**32 - 1)
     if timeout is None or not float(timeout) > 0:
         raise InputError(f"timeout: expected a positive number of seconds, got {timeout!r}")
+    check_range(timeout, "timeout", 0, 1e7)  # 1e7 s: 116 days
     mem = parse_memory(memory_limit) if not isinstance(memory_limit, int) else int(memory_limit)
     if mem < 0:
         raise InputError(f"memory limit: expected 0 (none) or more bytes, got {mem}")

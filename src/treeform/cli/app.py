@@ -57,6 +57,14 @@ Lod = _choices("Lod", "low", "medium", "high", "full")
 FoliageKind = _choices("FoliageKind", "auto", "broadleaf", "needles", "scales")
 
 
+MAX_SEED = 2**32 - 1  # what every library the seeds reach accepts (numpy, torch, OpenCV, COLMAP)
+
+
+def seed_option(help: str = "Random seed."):
+    """The ``--seed`` option of every command: an integer in [0, 2**32 - 1], checked before anything runs."""
+    return typer.Option(0, "--seed", min=0, max=MAX_SEED, help=help)
+
+
 TEXTURE_SIZE_HELP = "Bark texture edge in texels, leaves half of it (default: from the tree's size, >= 512/256)."
 
 
@@ -128,7 +136,7 @@ def reconstruct(
                                        "(Guénard et al. 2013)."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output directory."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     species: Optional[str] = typer.Option(None, "--species",
                                           help="learned, abs: grow this species instead of the predicted one."),
     candidates: Optional[int] = typer.Option(None, "--candidates", min=1, max=10000,
@@ -288,7 +296,6 @@ def demo(out: Path = typer.Option(Path("out/demo"), "--out", "-o", help="Output 
     from treeform.methods.envelope.pipeline import reconstruct as api
 
     sample = Path(str(files("treeform") / "data" / "Celtis_occidentalis_1.jpg"))
-    out.parent.mkdir(parents=True, exist_ok=True)
     res = run_api(api, sample, out=out)
     print_summary(res)
 
@@ -318,12 +325,38 @@ def _register_commands() -> None:
 _register_commands()
 
 
-def main():
+def _usage_line(exc) -> str:
+    """A command-line usage error (wrong type, unknown choice or option, missing value) as the
+    project's one ``error:`` line, with where to read the command's help."""
+    msg = " ".join(exc.format_message().split())
+    ctx = getattr(exc, "ctx", None)
+    return f"error: {msg} (see '{ctx.command_path} --help')" if ctx is not None else f"error: {msg}"
+
+
+def main(args=None):
+    """The ``treeform`` command: usage errors are one ``error:`` line (exit 2), like every other error."""
+    usage_error = typer.BadParameter.__mro__[1]  # click's UsageError (typer may vendor click)
+    click_error = usage_error.__mro__[1]  # ClickException
+    command = typer.main.get_command(app)
     try:
-        app()
+        rc = command.main(args=args, prog_name="treeform", standalone_mode=False)
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         sys.exit(130)
+    except usage_error as exc:
+        if type(exc).__name__ == "NoArgsIsHelpError":  # a bare command: its help, as click would
+            typer.echo(exc.ctx.get_help() if exc.ctx is not None else exc.format_message())
+        else:
+            sys.stdout.flush()
+            typer.echo(_usage_line(exc), err=True)
+        sys.exit(exc.exit_code)
+    except click_error as exc:
+        typer.echo(f"error: {' '.join(exc.format_message().split())}", err=True)
+        sys.exit(exc.exit_code)
+    except typer.Abort:
+        typer.echo("interrupted", err=True)
+        sys.exit(130)
+    sys.exit(rc if isinstance(rc, int) else 0)
 
 
 if __name__ == "__main__":

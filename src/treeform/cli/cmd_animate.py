@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 
 @app.command("animate")
@@ -19,7 +19,7 @@ def animate_cmd(
                                     "vertical (0 = +X, 90 = +Z)."),
     seconds: float = typer.Option(4.0, "--seconds", help="Length of the loop, seconds."),
     fps: int = typer.Option(30, "--fps", help="Keyframes per second."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the gusts."),
+    seed: int = seed_option(help="Seed of the gusts."),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Animated GLB (default TREE_DIR/tree_animated.glb)."),
 ):
     """Sway a tree in a turbulent wind (rod dynamics per branch) and write a looping, skinned glTF."""

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import Method, app, run_api
+from treeform.cli.app import app, Method, run_api, seed_option
 
 
 @app.command("batch")
@@ -16,7 +16,7 @@ def batch_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="Folder: one subfolder per photo, manifest.json, "
                              "failures.json, summary.html (a rerun skips the photos done, retries the failed)."),
     method: Method = typer.Option(Method.envelope, "--method", help="Single-photo method for every photo."),
-    seed: int = typer.Option(0, "--seed", help="Random seed of every reconstruction."),
+    seed: int = seed_option(help="Random seed of every reconstruction."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores; "
                                           "0 = one photo after the other from this process)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. "

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
+from treeform.cli.app import app, run_api, seed_option, SEGMENTER_OPTION, SegmenterName
 
 
 @app.command("cloud")
@@ -17,7 +17,7 @@ def cloud_cmd(
     segments: int = typer.Option(256, "--segments", help="Superpixels (billboards) the crown is cut into (Argudo et al. 2020 use 256)."),
     compactness: float = typer.Option(0.35, "--compactness",
                                       help="Superpixel compactness; lower follows the leaves more, with more ragged edges (published value 0.35)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed: same picture + seed -> identical files."),
+    seed: int = seed_option(help="Random seed: same picture + seed -> identical files."),
     views: Optional[Path] = typer.Option(None, "--views",
                                          help="Also write picture | front | 30° | 60° | 90° views (PNG)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 dataset_app = typer.Typer(no_args_is_help=True, help="Synthetic training data: grown trees rendered photo-like, with exact masks.")
 app.add_typer(dataset_app, name="dataset")
@@ -21,7 +21,7 @@ def generate_cmd(
     species: str = typer.Option("all", "--species", help="'all' or a comma-separated list, e.g. oak,pine."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. tcp://host:8786."),
-    seed: int = typer.Option(0, "--seed", help="Global seed: sample i depends only on (seed, i)."),
+    seed: int = seed_option(help="Global seed: sample i depends only on (seed, i)."),
     shard_size: int = typer.Option(1000, "--shard-size", help="Samples per tar shard (resuming is per sample, "
                                                                 "whatever the shard size)."),
     mesh: bool = typer.Option(False, "--mesh/--no-mesh", help="Also store each tree's GLB."),
@@ -65,7 +65,7 @@ def capture_cmd(
     views: int = typer.Option(24, "--views", help="Number of photos on the circle around the tree (3-360)."),
     size: int = typer.Option(1024, "--size", help="Image width in pixels (landscape 4:3)."),
     species: str = typer.Option("oak", "--species", help="acacia, apple, willow, maple, birch, oak or pine."),
-    seed: int = typer.Option(0, "--seed", help="Seeds the tree, the park, the cameras and the noise."),
+    seed: int = seed_option(help="Seeds the tree, the park, the cameras and the noise."),
     model: Optional[Path] = typer.Option(None, "--model", help="A GLB tree instead of a grown one (no skeleton truth)."),
     clutter: bool = typer.Option(True, "--clutter/--no-clutter", help="Benches, rocks, bins, kiosks ... in the park."),
 ):

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 
 @app.command("eval")
@@ -16,7 +16,7 @@ def eval_cmd(
                               "or photos:DIR (NAME_mask.png beside a photo is its true mask)."),
     methods: str = typer.Option("envelope", "--methods", help="Comma-separated methods, e.g. envelope,learned."),
     out: Path = typer.Option(..., "--out", "-o", help="Folder: results.json and cases/ (a rerun skips finished cases)."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the synthetic cases and of every method."),
+    seed: int = seed_option(help="Seed of the synthetic cases and of every method."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores; "
                                           "0 = in this process)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Use a running Dask scheduler, e.g. tcp://host:8786."),

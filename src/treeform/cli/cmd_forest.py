@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 
 @app.command("forest")
@@ -26,7 +26,7 @@ def forest_cmd(
                              "its trees with EXT_mesh_gpu_instancing (for game engines and web viewers)."),
     html: bool = typer.Option(False, "--html", help="Also write forest.html: the forest in a browser (three.js, "
                               "offline), relief impostors and clipped billboard clouds with the renderer's own shaders."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the scatter (positions, scales, turns, species)."),
+    seed: int = seed_option(help="Seed of the scatter (positions, scales, turns, species)."),
 ):
     """Scatter impostor trees over a ground and render a fly-through: clipped billboard clouds near, relief far."""
     from treeform.methods.envelope.forest import FOREST_STAGES, render_forest

@@ -7,14 +7,14 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import TEXTURE_SIZE_HELP, FoliageKind, Lod, app, run_api
+from treeform.cli.app import app, FoliageKind, Lod, run_api, seed_option, TEXTURE_SIZE_HELP
 
 
 @app.command()
 def grow(
     species: str = typer.Option("oak", "--species", "-s",
                                 help="acacia, apple, willow, maple, birch, oak, pine, or a species .json file."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     out: Path = typer.Option(Path("out/grow"), "--out", "-o", help="Output directory."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
     leaves: Optional[int] = typer.Option(None, "--leaves", help="Number of leaf clusters (default: 3 per twig)."),

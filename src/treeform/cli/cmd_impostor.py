@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 
 @app.command("impostor")
@@ -16,7 +16,7 @@ def impostor_cmd(
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default TREE_DIR/impostor)."),
     face: int = typer.Option(256, "--face", help="Edge of a colour cubemap face, texels (canvas 4F x 3F)."),
     rdm_resolution: int = typer.Option(128, "--rdm-resolution", help="Edge of a radial distance map face, texels."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the texture synthesis."),
+    seed: int = seed_option(help="Seed of the texture synthesis."),
     colors: str = typer.Option("synthesis", "--colors", help="Colour cubemap: 'synthesis' (from the front view: all a "
                                "single photo shows) or 'baked' (the mesh's own colours from all round: a grown or "
                                "multi-view tree)."),

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 
 @app.command("leaflets")
@@ -17,7 +17,7 @@ def leaflets_cmd(
     leaflet: Optional[Path] = typer.Option(None, "--leaflet", help="RGBA picture of a leaf (default: procedural)."),
     size: int = typer.Option(512, "--size", help="Texture edge in pixels."),
     attractors: int = typer.Option(800, "--attractors", help="Attraction points (density of twigs and leaves)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
 ):
     """RGBA leaf-cluster billboard grown by space colonization, with normals, leaf centroids, UVs, AO, depth, type."""
     from treeform.methods.envelope.leaflets import LEAFLET_STAGES, leaflet_billboard

@@ -7,14 +7,14 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import IMPOSTOR_HELP, Lod, app, run_api, write_impostor
+from treeform.cli.app import app, IMPOSTOR_HELP, Lod, run_api, seed_option, write_impostor
 
 
 @app.command()
 def multiview(
     photos: Path = typer.Argument(..., metavar="PHOTO_DIR", help="Folder of 10-60 photos taken around one tree."),
     out: Path = typer.Option(Path("out/multiview"), "--out", "-o", help="Output directory."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     leaves: int = typer.Option(15000, "--leaves", help="Number of leaf clusters (most on the crown surface the photos see)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
+from treeform.cli.app import app, run_api, seed_option, SEGMENTER_OPTION, SegmenterName
 
 
 @app.command("segment")
@@ -20,7 +20,7 @@ def segment_cmd(
     wood: Optional[Path] = typer.Option(None, "--wood", help="Also write the trunk and branches as a white-on-black "
                                                              "mask (what `grow --mask` reads)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
-    seed: int = typer.Option(0, "--seed", help="Seed of the classical graph cut."),
+    seed: int = seed_option(help="Seed of the classical graph cut."),
 ):
     """Segment the main tree of a photo: background / foliage / wood labels at the photo's size."""
     from treeform.methods.learned.perception import SEGMENT_STAGES, segment_photo
@@ -43,7 +43,7 @@ def species_cmd(
     segmenter: SegmenterName = typer.Option(SegmenterName.learned, "--segmenter",
                                             help="Segmentation the species network reads (it was trained on "
                                                  "the learned one's masks)."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the classical graph cut."),
+    seed: int = seed_option(help="Seed of the classical graph cut."),
 ):
     """Species of the main tree of a photo: the top 3 of the seven presets with probabilities."""
     import json

@@ -8,7 +8,7 @@ from typing import Optional
 import numpy as np
 import typer
 
-from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, _choices, app, run_api
+from treeform.cli.app import _choices, app, run_api, seed_option, SEGMENTER_OPTION, SegmenterName
 
 SkeletonSource = _choices("SkeletonSource", "auto", "foliage", "wood")
 
@@ -20,7 +20,7 @@ def skeleton2d_cmd(
     branches: int = typer.Option(5, "--branches", min=1, max=32, help="First-order branches n (cuts: n - 1)."),
     levels: int = typer.Option(2, "--levels", min=1, max=3, help="Branch orders: 2 adds second-order branches in each area."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Tree mask image, white = tree (skips segmentation)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (the cuts' draw)."),
+    seed: int = seed_option(help="Random seed (the cuts' draw)."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
     source: SkeletonSource = typer.Option(SkeletonSource.auto, "--source",
                                           help="foliage: from the crown's outline (force field, DCE cuts); wood: "

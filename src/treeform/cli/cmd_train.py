@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, run_api
+from treeform.cli.app import app, run_api, seed_option
 
 train_app = typer.Typer(no_args_is_help=True, help="Train the perception networks on synthetic data (needs torch).")
 app.add_typer(train_app, name="train")
@@ -23,7 +23,7 @@ def seg_cmd(
                                           "becomes out-of-focus backgrounds."),
     steps: int = typer.Option(2800, "--steps", help="Optimiser steps."),
     batch: int = typer.Option(16, "--batch", help="Scenes per step."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto (cuda when torch sees one)."),
     workers: int = typer.Option(0, "--workers", help="Processes composing scenes ahead of the optimiser "
                                 "(0 = in line; same scenes either way)."),
@@ -96,7 +96,7 @@ def _register_mask_command(kind: str, doc: str) -> None:
         test_data: Optional[Path] = typer.Option(None, "--test-data", help="Held-out dataset (another seed)."),
         seg_weights: Optional[Path] = _SEG_W,
         epochs: int = typer.Option(40, "--epochs", help="Passes over the data."),
-        seed: int = typer.Option(0, "--seed", help="Random seed."),
+        seed: int = seed_option(),
     ):
         _mask_cmd(kind, data, out, test_data, seg_weights, epochs, seed)
 

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import SEGMENTER_OPTION, SegmenterName, app, run_api
+from treeform.cli.app import app, run_api, seed_option, SEGMENTER_OPTION, SegmenterName
 
 library_app = typer.Typer(no_args_is_help=True, help="Libraries of RGBA tree images (exemplars for `treeform vary`).")
 app.add_typer(library_app, name="library")
@@ -35,7 +35,7 @@ def vary_cmd(
     n: int = typer.Option(20, "-n", help="Number of variations."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory (PNGs, contact_sheet.png, config.json)."),
     from_tree: Optional[Path] = typer.Option(None, "--from", help="Make variations of this RGBA tree."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     season: Optional[Path] = typer.Option(None, "--season", help="Photo of a tree whose crown and trunk colours the new trees take (only the tree's pixels count)."),
     any_form: bool = typer.Option(False, "--any-form", help="Blend trees of any growth form (default: broadleaf with broadleaf, conifer with conifer, palm with palm)."),
     cache: Optional[Path] = _CACHE,
@@ -68,7 +68,7 @@ def billboard_cmd(
     photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
     out: Path = typer.Option(..., "--out", "-o", help="RGBA billboard (PNG)."),
     sheet: Optional[Path] = typer.Option(None, "--sheet", help="Also write photo | trimap | billboard (PNG)."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     sky_gaps: bool = typer.Option(False, "--sky-gaps/--no-sky-gaps", help="Also make sky seen through gaps in the crown transparent."),
     segmenter: SegmenterName = SEGMENTER_OPTION,
 ):

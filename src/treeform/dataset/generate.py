@@ -161,17 +161,13 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
     OutputError
         ``out`` cannot be written.
     """
+    from treeform._shared.cluster import check_cluster
     from treeform.io.outputs import check_out_dir
 
     n = check_int(n, "n", 1, 100_000_000)
     shard_size = check_int(shard_size, "shard_size", 1, 1_000_000)
     seed = check_int(seed, "seed", 0, 2**63 - 1)
-    if workers is not None:
-        workers = check_int(workers, "workers", 1, 1024)
-    if workers is not None and scheduler is not None:
-        raise InputError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
-    if scheduler is not None and "://" not in str(scheduler):
-        raise InputError(f"--scheduler: expected an address like tcp://host:8786, got {scheduler!r}")
+    check_cluster(workers, scheduler, allow_zero=False)
     names = parse_species(species)
     opts = SampleOptions(size=size, species=names, supersample=supersample, lod=lod, mesh=bool(mesh)).validate()
     if backgrounds is not None:

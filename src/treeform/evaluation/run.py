@@ -231,11 +231,18 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
     """
     from treeform.evaluation.cases import case_names, display_name
 
+    from treeform._shared.checks import check_int
+    from treeform._shared.cluster import check_cluster
+    from treeform.io.outputs import check_out_dir
+
+    check_int(seed, "seed", 0, 2**32 - 1)
+    check_cluster(workers, scheduler)
+    check_int(viewer, "viewer", 0, 1000)
     names = case_names(cases, seed=seed)
     meths = parse_methods(methods)
     if int(size) < 64:
         raise InputError(f"--size {size}: expected >= 64")
-    out_dir = Path(out) if out is not None else None
+    out_dir = check_out_dir(out) if out is not None else None
     done: dict = {}
     if out_dir is not None:
         (out_dir / CASE_DIR).mkdir(parents=True, exist_ok=True)

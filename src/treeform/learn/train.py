@@ -98,6 +98,34 @@ class SegTrainConfig:
     test_scenes: int = 400
     """Scenes of the fixed test split scored at the end (half renders, half cut-outs when both exist)."""
 
+    def __post_init__(self):
+        """Every setting in its range, before anything is written or imported (one line for the CLI)."""
+        import re
+
+        from treeform._shared.checks import check_choice, check_int, check_range
+
+        for name, lo, hi in (("steps", 1, 10**7), ("batch", 1, 4096), ("width", 4, 128), ("refine", 0, 128),
+                             ("chunk", 1, 10**5), ("repeats", 1, 100), ("seed", 0, 2**32 - 1),
+                             ("checkpoint_every", 1, 10**7), ("threads", 0, 1024), ("workers", 0, 256),
+                             ("test_scenes", 2, 10**5)):
+            check_int(getattr(self, name), name, lo, hi)
+        check_int(self.size, "size", 32, 2048)
+        if self.size % 8:
+            raise InputError(f"size: expected a multiple of 8 (the network's stride), got {self.size}")
+        check_choice(self.fine_stride, "fine_stride", (1, 2, 4))
+        if self.refine and self.fine_stride != 1:
+            raise InputError(f"refine: works with fine_stride 1, got fine_stride {self.fine_stride}")
+        check_range(self.lr, "lr", 1e-7, 1.0)
+        check_range(self.weight_decay, "weight_decay", 0.0, 1.0)
+        check_range(self.wood_weight, "wood_weight", 0.0, 100.0)
+        check_range(self.tree_dice, "tree_dice", 0.0, 100.0)
+        check_range(self.sparse_boost, "sparse_boost", 0.0, 4.0)
+        for name in ("cutout_fraction", "negatives", "photo_fraction", "photo_tree_fraction", "noise_negatives",
+                     "bush_fraction"):
+            check_range(getattr(self, name), name, 0.0, 1.0)
+        if not re.fullmatch(r"cpu|auto|cuda(:\d+)?|mps", str(self.device)):
+            raise InputError(f"device: expected cpu, cuda, cuda:N, mps or auto, got {self.device!r}")
+
     @classmethod
     def from_dict(cls, d: dict) -> "SegTrainConfig":
         from treeform._shared.checks import check_known_options
@@ -290,11 +318,13 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     dict
         The test metrics (also in ``out/metrics.json``).
     """
+    from treeform.io.outputs import check_out_dir
+
+    cfg = SegTrainConfig.from_dict({**(asdict(config) if config else {}), **options})  # checked first
+    out = check_out_dir(out)
     torch = _torch()
     from treeform.learn.nets.segnet import SegNet
 
-    cfg = SegTrainConfig.from_dict({**(asdict(config) if config else {}), **options})
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)

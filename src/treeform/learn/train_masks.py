@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -39,6 +38,17 @@ class MaskTrainConfig:
     """Share of draws that use the segmentation network's mask instead of the true one."""
     seed: int = 0
     threads: int = 0
+
+    def __post_init__(self):
+        """Every setting in its range, before anything is written or imported (one line for the CLI)."""
+        from treeform._shared.checks import check_int, check_range
+
+        for name, lo, hi in (("epochs", 1, 10**5), ("batch", 1, 4096), ("seed", 0, 2**32 - 1), ("threads", 0, 1024)):
+            check_int(getattr(self, name), name, lo, hi)
+        check_range(self.lr, "lr", 1e-7, 1.0)
+        check_range(self.weight_decay, "weight_decay", 0.0, 1.0)
+        check_range(self.huber_beta, "huber_beta", 1e-6, 10.0)
+        check_range(self.predicted_fraction, "predicted_fraction", 0.0, 1.0)
 
     @classmethod
     def from_dict(cls, d: dict) -> "MaskTrainConfig":
@@ -130,14 +140,16 @@ def train_masknet(kind: str, data, out, *, test_data=None, seg_weights=None, con
     dict
         Test metrics (also ``out/metrics.json``).
     """
+    from treeform.io.outputs import check_out_dir
+
+    if kind not in ("species", "rbv"):
+        raise InputError(f"kind: expected 'species' or 'rbv', got {kind!r}")
+    cfg = MaskTrainConfig.from_dict({**(asdict(config) if config else {}), **options})  # checked first
+    out = check_out_dir(out)
     torch = _torch()
     from treeform.learn.export import export_onnx
     from treeform.learn.nets.masknets import RBVNet, SpeciesNet, split_levels
 
-    if kind not in ("species", "rbv"):
-        raise InputError(f"kind: expected 'species' or 'rbv', got {kind!r}")
-    cfg = MaskTrainConfig.from_dict({**(asdict(config) if config else {}), **options})
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)

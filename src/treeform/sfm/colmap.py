@@ -533,9 +533,10 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
             raise InputError(f"workdir: {work} exists and is not empty")
         work.mkdir(parents=True, exist_ok=True)
     db_path, image_dir = str(work / "database.db"), work / "images"
+    cseed = int(seed) % (2**31 - 1)  # COLMAP's seeds are 32-bit signed
     try:
         with _quiet_colmap():
-            pycolmap.set_random_seed(int(seed))
+            pycolmap.set_random_seed(cseed)
             with timer.stage("sfm.write"):
                 groups = _camera_groups(views, per_photo_camera)
                 names = _write_images(views, groups, image_dir)
@@ -543,10 +544,10 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                 _extract(db_path, image_dir, names, max_features, first_octave, num_threads)
                 image_ids = _set_focal_priors(db_path, views, groups, names)
             with timer.stage("sfm.match"):
-                match_info = _match(db_path, work, used, names, image_ids, num_threads, seed, 16384)
+                match_info = _match(db_path, work, used, names, image_ids, num_threads, cseed, 16384)
                 verified = _verified_pairs(db_path)
             with timer.stage("sfm.map"):
-                recs = _map(db_path, image_dir, work / "sparse", seed) if verified else {}
+                recs = _map(db_path, image_dir, work / "sparse", cseed) if verified else {}
             with timer.stage("sfm.convert"):
                 if not recs:
                     raise SfmError(f"could not register the photos: no model could be built ({verified} of "

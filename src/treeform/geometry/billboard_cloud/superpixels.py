@@ -57,6 +57,8 @@ def superpixels(rgb, mask, *, n_segments: int = 256, compactness: float = 0.35, 
     if isinstance(n_segments, bool) or not isinstance(n_segments, (int, np.integer)) or n_segments < 1:
         raise InputError(f"n_segments: expected a positive integer, got {n_segments!r}")
     compactness = check_positive(compactness, "compactness")
+    if compactness > 100:  # colours in [0, 1]: beyond ~10 the regions are a plain grid
+        raise InputError(f"compactness: expected a number in (0, 100], got {compactness:g}")
     if isinstance(max_side, bool) or not isinstance(max_side, (int, np.integer)) or max_side < 16:
         raise InputError(f"max_side: expected an integer >= 16, got {max_side!r}")
     if not mask.any():

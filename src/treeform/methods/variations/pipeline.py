@@ -131,6 +131,12 @@ def default_cache_dir() -> Path:
     return Path(base) / "treeform" / "exemplars"
 
 
+def _check_cache(cache_dir) -> None:
+    """A cache folder the caller named must be writable (only the default one is skipped quietly)."""
+    if cache_dir is not None:
+        check_out_dir(cache_dir, "--cache")
+
+
 def _cache_key(digest: str, cfg: VariationsConfig) -> str:
     opts = json.dumps({"v": 1, **cfg.processing_key()}, sort_keys=True)
     return hashlib.sha256((digest + opts).encode()).hexdigest()
@@ -246,6 +252,7 @@ def process_library(library, *, cache_dir=None, sheet=None, config: VariationsCo
     """
     cfg = _config(config, options)
     sheet_path = check_out_file(sheet, "--sheet") if sheet is not None else None
+    _check_cache(cache_dir)
     timer = StageTimer(progress)
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     with timer.stage("library"):
@@ -412,6 +419,7 @@ def vary(library, *, n: int = 20, out=None, from_tree=None, season=None, cache_d
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 10_000:
         raise InputError(f"n: expected an integer in [1, 10000], got {n!r}")
     out_dir = check_out_dir(out) if out is not None else None
+    _check_cache(cache_dir)
     timer = StageTimer(progress)
     rng = as_rng(cfg.seed)
     with timer.stage("library"):
@@ -512,6 +520,7 @@ def morph(a, b, *, steps: int = 7, out=None, cache_dir=None, config: VariationsC
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 2 <= steps <= 1000:
         raise InputError(f"steps: expected an integer in [2, 1000], got {steps!r}")
     out_path = check_out_file(out) if out is not None else None
+    _check_cache(cache_dir)
     timer = StageTimer(progress)
     with timer.stage("library"):
         ex = [x if isinstance(x, Exemplar) else load_exemplar(x, config=cfg, cache_dir=cache_dir)[0] for x in (a, b)]
