@@ -138,12 +138,11 @@ def kill_and_rerun(folder: Path, out: Path, workers: int, at: float, n: int) -> 
     t1 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, env=env)
     second = time.perf_counter() - t1
-    line = res.stdout.strip().splitlines()[-2 if res.stdout.count("\n") > 1 else -1] if res.stdout else ""
     m = re.search(r"(\d+) of (\d+) photos reconstructed \((\d+) done before\), (\d+) failed", res.stdout)
     done, total, skipped, failed = (int(x) for x in m.groups()) if m else (None,) * 4
     return {"killed_after_s": round(first, 1), "in_manifest_at_kill": len(before), "done_at_kill": done_before,
             "rerun_s": round(second, 1), "rerun_rc": res.returncode, "done": done, "total": total,
-            "skipped": skipped, "failed": failed, "line": line}
+            "skipped": skipped, "failed": failed}
 
 
 def main():

@@ -64,11 +64,12 @@ OUTPUTS = {"out", "sheet", "overlay", "plot", "cache", ("segment", "--mask"), ("
 def _kind(param, command: str = "") -> object:
     """What WRONG values fit ``param``: int, float, 'choice', str, 'out', 'in' (or None: not swept)."""
     import enum
+    import types
     import typing
     from pathlib import Path as P
 
     ann = param.type_descriptor.annotation
-    if typing.get_origin(ann) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+    if typing.get_origin(ann) in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(ann) if a is not type(None)]
         ann = args[0] if len(args) == 1 else ann
     if isinstance(ann, type) and issubclass(ann, enum.Enum):

@@ -4,6 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 
+MAX_SEED = 2**32 - 1
+"""The largest seed a command takes: what every library the seeds reach accepts (numpy, torch, OpenCV, COLMAP)."""
+
+
+def check_seed(seed) -> int:
+    """Return ``seed`` as an int after checking it is an integer in [0, :data:`MAX_SEED`].
+
+    >>> check_seed(7)
+    7
+    """
+    from treeform._shared.checks import check_int
+
+    return check_int(seed, "seed", 0, MAX_SEED)
+
 
 def as_rng(seed=None) -> np.random.Generator:
     """Return a ``numpy.random.Generator`` from an int seed, a Generator, or None (seed 0).

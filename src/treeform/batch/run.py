@@ -227,15 +227,15 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     if method not in METHODS or method in ("variations",):
         known = ", ".join(k for k in METHODS if k != "variations")
         raise InputError(f"method: expected one of {known}, got {method!r}")
-    from treeform._shared.checks import check_int, check_range
+    from treeform._shared.checks import check_range
     from treeform._shared.cluster import check_cluster
+    from treeform._shared.rng import check_seed
 
     photos = list_photos(input_dir)
     check_cluster(workers, scheduler)
-    check_int(seed, "seed", 0, 2**32 - 1)
-    if timeout is None or not float(timeout) > 0:
+    check_seed(seed)
+    if timeout is None or check_range(timeout, "timeout", 0, 1e7) == 0:  # at most 1e7 s (116 days)
         raise InputError(f"timeout: expected a positive number of seconds, got {timeout!r}")
-    check_range(timeout, "timeout", 0, 1e7)  # 1e7 s: 116 days
     mem = parse_memory(memory_limit) if not isinstance(memory_limit, int) else int(memory_limit)
     if mem < 0:
         raise InputError(f"memory limit: expected 0 (none) or more bytes, got {mem}")

@@ -57,11 +57,10 @@ Lod = _choices("Lod", "low", "medium", "high", "full")
 FoliageKind = _choices("FoliageKind", "auto", "broadleaf", "needles", "scales")
 
 
-MAX_SEED = 2**32 - 1  # what every library the seeds reach accepts (numpy, torch, OpenCV, COLMAP)
-
-
 def seed_option(help: str = "Random seed."):
-    """The ``--seed`` option of every command: an integer in [0, 2**32 - 1], checked before anything runs."""
+    """The ``--seed`` option of every command: an integer in [0, MAX_SEED], checked before anything runs."""
+    from treeform._shared.rng import MAX_SEED
+
     return typer.Option(0, "--seed", min=0, max=MAX_SEED, help=help)
 
 
@@ -340,7 +339,7 @@ def main(args=None):
     command = typer.main.get_command(app)
     try:
         rc = command.main(args=args, prog_name="treeform", standalone_mode=False)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, typer.Abort):  # Ctrl-C in the command, or in a prompt
         typer.echo("interrupted", err=True)
         sys.exit(130)
     except usage_error as exc:
@@ -353,9 +352,6 @@ def main(args=None):
     except click_error as exc:
         typer.echo(f"error: {' '.join(exc.format_message().split())}", err=True)
         sys.exit(exc.exit_code)
-    except typer.Abort:
-        typer.echo("interrupted", err=True)
-        sys.exit(130)
     sys.exit(rc if isinstance(rc, int) else 0)
 
 

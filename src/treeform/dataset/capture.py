@@ -51,6 +51,7 @@ import numpy as np
 
 from treeform._shared.checks import check_choice, check_finite, check_int
 from treeform._shared.errors import InputError, OutputError
+from treeform._shared.rng import check_seed
 from treeform._shared.timing import ProgressCallback, StageTimer
 
 __all__ = ["CaptureResult", "FOCAL_35MM", "STAGES", "synthetic_capture"]
@@ -103,7 +104,7 @@ def _check_args(out, views, size, species, seed, model, clutter, radius, camera_
 
     views = check_int(views, "views", 3, 360)
     size = check_int(size, "size", 64, 4096)
-    seed = check_int(seed, "seed", 0, 2**32 - 1)
+    seed = check_seed(seed)
     check_choice(species, "species", SPECIES)
     radius = check_finite(radius, "radius")
     if not 0.5 <= radius <= 10.0:

@@ -233,9 +233,10 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
 
     from treeform._shared.checks import check_int
     from treeform._shared.cluster import check_cluster
+    from treeform._shared.rng import check_seed
     from treeform.io.outputs import check_out_dir
 
-    check_int(seed, "seed", 0, 2**32 - 1)
+    check_seed(seed)
     check_cluster(workers, scheduler)
     check_int(viewer, "viewer", 0, 1000)
     names = case_names(cases, seed=seed)

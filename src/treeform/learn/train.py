@@ -103,12 +103,13 @@ class SegTrainConfig:
         import re
 
         from treeform._shared.checks import check_choice, check_int, check_range
+        from treeform._shared.rng import check_seed
 
         for name, lo, hi in (("steps", 1, 10**7), ("batch", 1, 4096), ("width", 4, 128), ("refine", 0, 128),
-                             ("chunk", 1, 10**5), ("repeats", 1, 100), ("seed", 0, 2**32 - 1),
-                             ("checkpoint_every", 1, 10**7), ("threads", 0, 1024), ("workers", 0, 256),
+                             ("chunk", 1, 10**5), ("repeats", 1, 100), ("checkpoint_every", 1, 10**7), ("threads", 0, 1024), ("workers", 0, 256),
                              ("test_scenes", 2, 10**5)):
             check_int(getattr(self, name), name, lo, hi)
+        check_seed(self.seed)
         check_int(self.size, "size", 32, 2048)
         if self.size % 8:
             raise InputError(f"size: expected a multiple of 8 (the network's stride), got {self.size}")

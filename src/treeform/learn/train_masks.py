@@ -42,9 +42,11 @@ class MaskTrainConfig:
     def __post_init__(self):
         """Every setting in its range, before anything is written or imported (one line for the CLI)."""
         from treeform._shared.checks import check_int, check_range
+        from treeform._shared.rng import check_seed
 
-        for name, lo, hi in (("epochs", 1, 10**5), ("batch", 1, 4096), ("seed", 0, 2**32 - 1), ("threads", 0, 1024)):
+        for name, lo, hi in (("epochs", 1, 10**5), ("batch", 1, 4096), ("threads", 0, 1024)):
             check_int(getattr(self, name), name, lo, hi)
+        check_seed(self.seed)
         check_range(self.lr, "lr", 1e-7, 1.0)
         check_range(self.weight_decay, "weight_decay", 0.0, 1.0)
         check_range(self.huber_beta, "huber_beta", 1e-6, 10.0)

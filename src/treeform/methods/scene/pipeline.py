@@ -164,7 +164,8 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
     TreeformError
         Every tree's reconstruction failed (the first reason).
     """
-    from treeform._shared.checks import check_height, check_int
+    from treeform._shared.checks import check_height
+    from treeform._shared.rng import check_seed
     from treeform.io.outputs import check_out_dir
     from treeform.methods._single_photo import as_photo, fit_photo
     from treeform.methods.scene.placement import place_on_ground
@@ -172,7 +173,7 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
 
     if tree_height is not None:
         check_height(tree_height)
-    seed = check_int(seed, "seed", 0, 2**32 - 1)
+    seed = check_seed(seed)
     if method_api is None:
         from treeform.methods.envelope.pipeline import reconstruct as method_api
     if "mask" in method_options:
