@@ -44,6 +44,7 @@ bench: $(STAMP) sysdeps
 	$(PY) benchmarks/bench_segment.py
 	$(PY) benchmarks/bench_peers.py
 	$(PY) benchmarks/bench_eval.py
+	$(PY) benchmarks/bench_eval.py --captures 7 --methods envelope,learned,abs,multiview
 	$(PY) benchmarks/bench_multiview.py
 	$(PY) benchmarks/bench_impostor.py --sizes 32,64,128
 	$(PY) benchmarks/bench_forest.py --trees 5000 --area 700 --frames 3 --baseline

@@ -1,12 +1,18 @@
 """A fixed evaluation: synthetic cases, 3 per species by default, every single-photo method.
 
     python benchmarks/bench_eval.py [--cases 21] [--methods envelope,learned] [--workers 2] [--write]
+    python benchmarks/bench_eval.py --captures 7 --methods envelope,learned,abs,multiview [--write]
 
 Runs :func:`treeform.evaluation.evaluate` (the same as ``treeform eval``) into a fresh
 folder and prints the methods x scores table (median [95 % interval of the median]) with
 the wall-clock time; ``--write`` puts it into BENCHMARKS.md between ``<!-- eval:begin -->``
 and ``<!-- eval:end -->`` and into the README's evaluation section. Scores, not timings,
 are the point: every later change to a method shows its effect here.
+
+``--captures N`` scores N trees photographed all around instead (``--cases captures:N``:
+the multi-view method beside the single-photo ones, which see the first photo); ``--write``
+then puts its table into BENCHMARKS.md between ``<!-- eval-captures:begin -->`` and
+``<!-- eval-captures:end -->``.
 """
 
 from __future__ import annotations
@@ -60,6 +66,7 @@ def screenshot(page_path: Path, dest: Path) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=21)
+    ap.add_argument("--captures", type=int, default=0, help="score N capture cases instead (for multiview)")
     ap.add_argument("--methods", default="envelope,learned")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--seed", type=int, default=0)
@@ -69,24 +76,34 @@ def main() -> int:
                     help="save a picture of report.html here (headless Chromium; e.g. docs/images/eval_report.jpg)")
     a = ap.parse_args()
     from treeform.evaluation import evaluate
+    from treeform.evaluation.cases import CAPTURE_SIZE, CAPTURE_VIEWS
     from treeform.evaluation.tables import markdown_table
 
     with tempfile.TemporaryDirectory() as tmp:
         out = a.out or Path(tmp) / "eval"
         t0 = time.perf_counter()
-        res = evaluate(f"synthetic:{a.cases}", a.methods, out, seed=a.seed, workers=a.workers)
+        spec = f"captures:{a.captures}" if a.captures else f"synthetic:{a.cases}"
+        res = evaluate(spec, a.methods, out, seed=a.seed, workers=a.workers)
         wall = time.perf_counter() - t0
         if a.screenshot is not None:
             screenshot(out / "report.html", a.screenshot)
     table = markdown_table(res)
     per_method = ", ".join(f"{m} {s['scores']['seconds']['median']:.2f} s" for m, s in res["aggregate"].items()
                            if "seconds" in s["scores"])
-    text = (f"{a.cases} synthetic cases (seed {a.seed}), methods {a.methods}: {wall:.0f} s wall-clock on "
+    kind = f"--captures {a.captures}" if a.captures else f"--cases {a.cases}"
+    what = (f"{a.captures} capture cases ({CAPTURE_VIEWS} photos of {CAPTURE_SIZE} px around each tree)" if a.captures
+            else f"{a.cases} synthetic cases")
+    text = (f"{what} (seed {a.seed}), methods {a.methods}: {wall:.0f} s wall-clock on "
             f"{a.workers} Dask worker(s), cluster start included (median reconstruction per case: {per_method}).\n"
-            f"Machine: {machine()}. Command: `python benchmarks/bench_eval.py --cases {a.cases} "
+            f"Machine: {machine()}. Command: `python benchmarks/bench_eval.py {kind} "
             f"--methods {a.methods} --workers {a.workers}`.\n\n{table}")
     print(text)
-    if a.write:
+    if a.write and a.captures:
+        write_section(ROOT / "BENCHMARKS.md", "eval-captures",
+                      "## Evaluation on captures: several photos against one (`treeform eval --cases captures:N`)\n\n"
+                      + text)
+        print("wrote the eval-captures section of BENCHMARKS.md")
+    elif a.write:
         write_section(ROOT / "BENCHMARKS.md", "eval", "## Evaluation against ground truth (`treeform eval`)\n\n" + text)
         readme = ROOT / "README.md"
         md = readme.read_text()

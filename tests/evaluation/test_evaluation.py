@@ -16,7 +16,8 @@ def test_case_specs_are_parsed_and_bad_ones_named(tmp_path):
     from treeform.evaluation import case_names
 
     assert case_names("synthetic:2", seed=7) == ["synthetic-7-0", "synthetic-7-1"]
-    for bad in ("synthetic:0", "synthetic:x", "forest:3", f"photos:{tmp_path / 'missing'}"):
+    assert case_names("captures:2", seed=7) == ["capture-7-0", "capture-7-1"]
+    for bad in ("synthetic:0", "synthetic:x", "captures:0", "forest:3", f"photos:{tmp_path / 'missing'}"):
         with pytest.raises(InputError, match="--cases"):
             case_names(bad)
     with pytest.raises(InputError, match="no photos"):
@@ -27,14 +28,17 @@ def test_unknown_or_non_photo_methods_are_refused():
     from treeform.evaluation.run import parse_methods
 
     assert parse_methods("envelope, learned,envelope") == ["envelope", "learned"]
-    with pytest.raises(InputError, match="not a single-photo method"):
+    with pytest.raises(InputError, match="not a tree-reconstruction method"):
         parse_methods("variations")
+    assert parse_methods("envelope,multiview", cases="captures:2") == ["envelope", "multiview"]
+    with pytest.raises(InputError, match="captures:N"):  # the multi-view route needs photos all around
+        parse_methods("multiview", cases="synthetic:3")
     with pytest.raises(InputError, match="at least one"):
         parse_methods(" , ")
 
 
 def _box(center, half, name="leaves"):
-    from treeform.structures import Mesh, MeshPart
+    from treeform.structures import MeshPart
 
     c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float32) * half + center
     faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6),
@@ -65,6 +69,39 @@ def test_canonical_mesh_turns_the_camera_onto_plus_z():
     centre = c.parts[0].positions.mean(0)
     assert np.allclose(centre, (0.0, 0.0, 10.0), atol=1e-4)
     assert np.allclose(m.parts[0].positions.mean(0), (5.0, 0.0, 0.0))  # input unchanged
+
+
+def test_lai_and_mrt_errors_are_zero_for_the_same_tree_at_any_scale_and_see_a_wider_crown():
+    from types import SimpleNamespace
+
+    from treeform.evaluation.cases import Case
+    from treeform.evaluation.scores import _form_errors
+    from treeform.structures import Material, Mesh, MeshPart, TreeSkeleton
+
+    # a trunk 0 -> 1 -> 2 (m, leaning) with two laterals, and a leaf layer of two cards
+    pos = np.array([[0, 0, 0], [0.2, 2, 0], [0.4, 4, 0], [1.6, 2.8, 0.5], [-1.2, 3.6, -0.4]], float)
+    skel = TreeSkeleton(pos, np.array([-1, 0, 1, 1, 2]), radius=np.array([0.2, 0.15, 0.1, 0.05, 0.05]))
+    cards = np.array([[-1, 3, -1], [1, 3, -1], [1, 3, 1], [-1, 3, 1]], np.float32)
+    leaves = MeshPart(cards, np.zeros((4, 3)), np.zeros((4, 2)), None, np.array([0, 1, 2, 0, 2, 3]),
+                      Material("leaves"), name="leaves")
+
+    def tree(scale=1.0, wide=1.0):
+        p = pos * scale
+        p[3:, [0, 2]] = p[2, [0, 2]] + (p[3:, [0, 2]] - p[2, [0, 2]]) * wide  # laterals farther from the trunk
+        lv = MeshPart(cards * scale * wide, leaves.normals, leaves.uvs, None, leaves.indices, leaves.material)
+        return TreeSkeleton(p, skel.parent, radius=skel.radius * scale), Mesh([lv])
+
+    case = Case(name="t", image=np.zeros((4, 4, 3), np.uint8), gt_skeleton=skel, gt_mesh=Mesh([leaves]))
+    s, m = tree(scale=2.0)
+    same = _form_errors(SimpleNamespace(skeleton=s, mesh=m), case)
+    assert same["rel_err_height"] == pytest.approx(1.0)  # twice as tall ...
+    assert same["rel_err_lai"] == pytest.approx(0.0, abs=0.02)  # ... same leaf area per ground area
+    assert same["mrt_err_pct"] == pytest.approx(0.0, abs=1e-6)  # ... and the same crown shape
+    s, m = tree(wide=1.5)
+    wider = _form_errors(SimpleNamespace(skeleton=s, mesh=m), case)
+    assert wider["mrt_err_pct"] > 5.0
+    bare = _form_errors(SimpleNamespace(skeleton=skel, mesh=Mesh([])), case)
+    assert "rel_err_lai" not in bare and bare["mrt_err_pct"] == 0.0  # no leaves: no LAI score, not a fake one
 
 
 def test_a_method_failing_on_one_case_costs_only_that_case_and_a_rerun_retries_it(tmp_path, gl, monkeypatch):

@@ -276,13 +276,14 @@ def write_impostor(out: Path, seed: int) -> None:
     typer.echo(f" impostor                    {Path(next(iter(imp.files.values()))).parent}")
 
 
-def write_report(out: Path, title: str, rbv=None) -> None:
-    """report.html in ``out`` (``--report`` of reconstruct and grow), with the RBV's picture when given."""
+def write_report(out: Path, title: str, rbv=None, preview: str | None = None) -> None:
+    """report.html in ``out`` (``--report`` of reconstruct, grow and multiview), with the RBV's picture when given."""
     from treeform.report import write_run_report
     from treeform.report.rbv_plot import plot_rbv
 
     pictures = [("radial bounding volume: top and side", plot_rbv(rbv))] if rbv is not None else []
-    page = run_api(write_run_report, out, title=title, pictures=pictures, stages=("report",))
+    extra = {} if preview is None else {"preview_caption": preview}
+    page = run_api(write_run_report, out, title=title, pictures=pictures, stages=("report",), **extra)
     typer.echo(f"report: {page}")
 
 

@@ -1,4 +1,4 @@
-"""``treeform eval``: score single-photo methods on the same cases against ground truth."""
+"""``treeform eval``: score tree-reconstruction methods on the same cases against ground truth."""
 
 from __future__ import annotations
 
@@ -12,9 +12,11 @@ from treeform.cli.app import app, run_api, seed_option
 
 @app.command("eval")
 def eval_cmd(
-    cases: str = typer.Option("synthetic:21", "--cases", help="synthetic:N (grown trees with full 3D ground truth) "
+    cases: str = typer.Option("synthetic:21", "--cases", help="synthetic:N (grown trees with full 3D ground truth), "
+                              "captures:N (the same, photographed all around: for multiview) "
                               "or photos:DIR (NAME_mask.png beside a photo is its true mask)."),
-    methods: str = typer.Option("envelope", "--methods", help="Comma-separated methods, e.g. envelope,learned."),
+    methods: str = typer.Option("envelope", "--methods", help="Comma-separated methods, e.g. envelope,learned,abs "
+                                "(multiview with captures:N)."),
     out: Path = typer.Option(..., "--out", "-o", help="Folder: results.json and cases/ (a rerun skips finished cases)."),
     seed: int = seed_option(help="Seed of the synthetic cases and of every method."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local Dask worker processes (default: all cores; "

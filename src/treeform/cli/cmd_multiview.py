@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, IMPOSTOR_HELP, Lod, run_api, seed_option, write_impostor
+from treeform.cli.app import app, IMPOSTOR_HELP, Lod, run_api, seed_option, write_impostor, write_report
 
 
 @app.command()
@@ -23,6 +23,8 @@ def multiview(
     masks: Optional[Path] = typer.Option(None, "--masks", help="Folder of per-photo mattes <photo stem>.png "
                                          "(labels 0/1/2 or white = tree) instead of the segmenter."),
     impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),
+    report: bool = typer.Option(False, "--report", help="Also write report.html: preview (the model beside three "
+                                "photos from their own cameras), metrics, stage times, the tree in a 3D viewer."),
 ):
     """Several photos around a tree -> 3D tree: SfM, mattes, visual hull, branch graph, growth (Tan et al. 2007)."""
     from treeform.methods.multiview.pipeline import STAGES, reconstruct_multiview
@@ -37,3 +39,6 @@ def multiview(
                f"{m['total_seconds']:.1f} s -> {out}")
     if impostor:
         write_impostor(out, seed)
+    if report:
+        write_report(out, f"treeform multiview {photos.name} --seed {seed}",
+                     preview="preview: the model beside three of the photos, each from its own camera")

@@ -18,17 +18,27 @@ __all__ = ["evaluate", "parse_methods", "aggregate"]
 CASE_DIR = "cases"
 
 
-def parse_methods(methods) -> list[str]:
-    """Registered single-photo methods named in ``methods`` ("envelope,learned" or a list)."""
+MULTIVIEW = "multiview"
+"""The method that needs several photos of a case (``captures:N`` cases only)."""
+
+
+def parse_methods(methods, *, cases: str | None = None) -> list[str]:
+    """Registered tree-reconstruction methods named in ``methods`` ("envelope,learned" or a list).
+
+    The single-photo methods score on every kind of case; ``multiview`` needs the photos
+    around a tree that only ``captures:N`` cases have (checked when ``cases`` is given).
+    """
     from treeform.methods import METHODS
 
     names = [m.strip() for m in (methods.split(",") if isinstance(methods, str) else methods) if m.strip()]
     if not names:
         raise InputError("--methods: name at least one method")
-    photo = [k for k, v in METHODS.items() if v[2].endswith(":reconstruct")]
+    known = [k for k, v in METHODS.items() if v[2].endswith(":reconstruct")] + [MULTIVIEW]
     for m in names:
-        if m not in photo:
-            raise InputError(f"--methods {m}: not a single-photo method (known: {', '.join(photo)})")
+        if m not in known:
+            raise InputError(f"--methods {m}: not a tree-reconstruction method (known: {', '.join(known)})")
+    if MULTIVIEW in names and cases is not None and not str(cases).startswith("captures:"):
+        raise InputError(f"--methods {MULTIVIEW}: needs photos all around each tree: use --cases captures:N")
     return list(dict.fromkeys(names))
 
 
@@ -64,6 +74,32 @@ def _thumbs(rec, folder: Path, method: str) -> dict:
     win = photo_window(front.camera, rec.camera)
     return {"front": _save_image(folder / f"{method}_front.png", _over_white(front.color[win])),
             "side": _save_image(folder / f"{method}_side.png", _over_white(rec.renders["side"].color))}
+
+
+def _multiview_pictures(rec, case, folder: Path, method: str, glb: bool) -> dict:
+    """The multi-view tree, aligned to the truth: drawn by the first photo's true camera (front)
+    and from 90° in that camera's frame (side), and its viewer GLB in the same frame as the truth's."""
+    from treeform.evaluation.scores import align_multiview, aligned_view_mesh
+    from treeform.render import Renderer
+    from treeform.sfm.result import render_camera
+    from treeform.structures.camera import box_camera
+
+    tree, _ = align_multiview(rec, case.cameras)
+    first = case.cameras[min(case.cameras)]
+    turned = aligned_view_mesh(tree, case)
+    lo, hi = turned.bounds()
+    renderer = Renderer(render_camera(first["K"], first["cam_to_world"], first["size"]))
+    try:
+        front = renderer.render(tree.mesh).color
+        renderer.camera = box_camera(np.asarray(lo, np.float64), np.asarray(hi, np.float64), 90.0, 0.0, 320)
+        side = renderer.render(turned).color
+    finally:
+        renderer.release()
+    out = {"front": _save_image(folder / f"{method}_front.png", _over_white(front)),
+           "side": _save_image(folder / f"{method}_side.png", _over_white(side))}
+    if glb:
+        out["glb"] = _viewer_glb(turned, folder / f"{method}.glb")
+    return out
 
 
 def _viewer_glb(mesh, path: Path, *, texture_size: int = 256) -> str:
@@ -104,7 +140,7 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
         scores carry ``seconds`` (total) and ``stages`` (seconds per pipeline stage).
     """
     from treeform.evaluation.cases import display_name, load_case
-    from treeform.evaluation.scores import score_reconstruction
+    from treeform.evaluation.scores import score_multiview, score_reconstruction
 
     res = {"case": display_name(name), "source": name, "size": int(size)}
     try:
@@ -112,48 +148,61 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
     except Exception as exc:  # a corrupt case costs only this case
         res["error"] = _one_line(exc)
         return res
-    res.update(mask_source=case.mask_source, species=case.species, methods={})
-    files = {}
-    if folder is not None:
-        folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
-        files["photo"] = _save_image(folder / "photo.jpg", case.image)
-        if case.gt_mask is not None:
-            files["gt_mask"] = _save_image(folder / "gt_mask.png", (np.asarray(case.gt_mask) * 255).astype(np.uint8))
-        if glb and case.gt_mesh is not None:
-            from treeform.evaluation.scores import canonical_mesh
-
-            gt = canonical_mesh(case.gt_mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
-            files["gt_glb"] = _viewer_glb(gt, folder / "gt.glb")
-    for m in methods:
-        stages = {}
-
-        def progress(stage, event, seconds, _st=stages):
-            if event == "end":
-                _st[stage] = round(_st.get(stage, 0.0) + float(seconds), 4)
-
-        t0 = time.perf_counter()
-        try:
-            rec = _entry(m)(case.image, seed=seed, progress=progress)
-            seconds = time.perf_counter() - t0
-            scores = score_reconstruction(rec, case, view_size=view_size)
-        except Exception as exc:  # a method that raises on one case costs only that case
-            res["methods"][m] = {"error": _one_line(exc)}
-            continue
-        res["methods"][m] = {**scores, "seconds": round(seconds, 3), "stages": stages}
+    try:
+        res.update(mask_source=case.mask_source, species=case.species, methods={})
+        files = {}
         if folder is not None:
-            try:
-                files[m] = _thumbs(rec, folder, m)
-                if glb and case.gt_mesh is not None:
-                    from treeform.evaluation.scores import canonical_mesh, reconstruction_scale
+            folder = Path(folder)
+            folder.mkdir(parents=True, exist_ok=True)
+            files["photo"] = _save_image(folder / "photo.jpg", case.image)
+            if case.gt_mask is not None:
+                files["gt_mask"] = _save_image(folder / "gt_mask.png", (np.asarray(case.gt_mask) * 255).astype(np.uint8))
+            if glb and case.gt_mesh is not None:
+                from treeform.evaluation.scores import canonical_mesh
 
-                    root = rec.skeleton.positions[0]
-                    files[m]["glb"] = _viewer_glb(canonical_mesh(rec.mesh, root, scale=reconstruction_scale(rec, case)),
-                                                  folder / f"{m}.glb")
-            except Exception as exc:  # pictures are extras: their failure is noted, the scores stay
-                files[m] = {"error": _one_line(exc)}
-    if files:
-        res["files"] = files
+                gt = canonical_mesh(case.gt_mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
+                files["gt_glb"] = _viewer_glb(gt, folder / "gt.glb")
+        for m in methods:
+            stages = {}
+
+            def progress(stage, event, seconds, _st=stages):
+                if event == "end":
+                    _st[stage] = round(_st.get(stage, 0.0) + float(seconds), 4)
+
+            t0 = time.perf_counter()
+            try:
+                if m == MULTIVIEW:
+                    if case.photos is None:
+                        raise InputError("the multi-view method needs a capture case (--cases captures:N)")
+                    rec = _entry(m)(case.photos, seed=seed, progress=progress)
+                    seconds = time.perf_counter() - t0
+                    scores = score_multiview(rec, case, view_size=view_size)
+                else:
+                    rec = _entry(m)(case.image, seed=seed, progress=progress)
+                    seconds = time.perf_counter() - t0
+                    scores = score_reconstruction(rec, case, view_size=view_size)
+            except Exception as exc:  # a method that raises on one case costs only that case
+                res["methods"][m] = {"error": _one_line(exc)}
+                continue
+            res["methods"][m] = {**scores, "seconds": round(seconds, 3), "stages": stages}
+            if folder is not None:
+                try:
+                    if m == MULTIVIEW:
+                        files[m] = _multiview_pictures(rec, case, folder, m, glb)
+                        continue
+                    files[m] = _thumbs(rec, folder, m)
+                    if glb and case.gt_mesh is not None:
+                        from treeform.evaluation.scores import canonical_mesh, reconstruction_scale
+
+                        root = rec.skeleton.positions[0]
+                        files[m]["glb"] = _viewer_glb(canonical_mesh(rec.mesh, root, scale=reconstruction_scale(rec, case)),
+                                                      folder / f"{m}.glb")
+                except Exception as exc:  # pictures are extras: their failure is noted, the scores stay
+                    files[m] = {"error": _one_line(exc)}
+        if files:
+            res["files"] = files
+    finally:
+        case.close()  # a capture's photos
     return res
 
 
@@ -191,14 +240,16 @@ def _write_json(path: Path, obj) -> None:
 def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed: int = 0, size: int = 256,
              workers: int | None = None, scheduler: str | None = None, viewer: int = 4, report: bool = True,
              progress=None) -> dict:
-    """Score single-photo methods on the same cases (``treeform eval``).
+    """Score tree-reconstruction methods on the same cases (``treeform eval``).
 
     Parameters
     ----------
     cases : str
-        ``synthetic:N`` (N trees with full 3D ground truth, seeded by ``seed``) or ``photos:DIR``.
+        ``synthetic:N`` (N trees with full 3D ground truth, seeded by ``seed``), ``captures:N``
+        (N trees photographed all around, for ``multiview`` beside the single-photo methods) or
+        ``photos:DIR``.
     methods : str or list
-        Registered single-photo methods, e.g. ``"envelope,learned"``.
+        Registered methods, e.g. ``"envelope,learned"``; ``multiview`` with ``captures:N``.
     out : path, optional
         Output folder: ``cases/NAME.json`` per finished case (a rerun skips them) and
         ``results.json`` (config, per-case scores, aggregate).
@@ -240,7 +291,7 @@ def evaluate(cases: str = "synthetic:21", methods="envelope", out=None, *, seed:
     check_cluster(workers, scheduler)
     check_int(viewer, "viewer", 0, 1000)
     names = case_names(cases, seed=seed)
-    meths = parse_methods(methods)
+    meths = parse_methods(methods, cases=cases)
     if int(size) < 64:
         raise InputError(f"--size {size}: expected >= 64")
     out_dir = check_out_dir(out) if out is not None else None

@@ -9,18 +9,23 @@ All figures are plain floats (JSON-ready); a score the case cannot support is ab
   silhouettes from 90°, 180° and above through the same near-orthographic camera, IoU;
 - RBV error per level: mean absolute difference of the normalised radii, in % (seed 003
   Table 1), reconstruction's RBV vs the true one in that frame;
-- tree-form metric distances (seed 003 §6): relative error of height, trunk diameter, LAI and
-  biomass, absolute error of the branching angle in degrees;
+- tree-form metric distances (seed 003 §6): relative error of height, trunk diameter, LAI (each
+  tree's leaf triangles over its crown's footprint) and biomass, absolute error of the branching
+  angle in degrees, and the MRT error: the maximum radial trunk distance of 5 layers (measured
+  from the trunk chain), each divided by its tree's height, mean absolute difference in % of
+  the height;
 - species (when the method predicts one).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["VIEWS", "canonical_mesh", "novel_view_ious", "rbv_errors", "reconstruction_scale", "score_reconstruction"]
+__all__ = ["VIEWS", "align_multiview", "aligned_view_mesh", "canonical_mesh", "novel_view_ious", "rbv_errors", "reconstruction_scale",
+           "score_multiview", "score_reconstruction"]
 
 VIEWS = {"front": (0.0, 0.0), "side": (90.0, 0.0), "back": (180.0, 0.0), "top": (0.0, 90.0)}
 """View name -> (azimuth, elevation) in degrees in the photo camera's frame (front = +Z)."""
@@ -118,32 +123,50 @@ def novel_view_ious(gt_mesh, rec_mesh, *, size: int = 160) -> dict:
     return out
 
 
-def rbv_errors(rec_skeleton, gt_levels) -> list:
+def rbv_errors(rec_skeleton, gt_levels, *, azimuth_deg: float = 0.0) -> list:
     """Mean absolute error (%) of the normalised RBV radii per level 1–5, seed 003 Table 1.
 
-    ``rec_skeleton`` is in the photo camera's frame (camera on +Z, as every method builds).
+    ``rec_skeleton`` is in the photo camera's frame (camera on +Z, as every single-photo
+    method builds), or in a frame where the photo camera stands at azimuth ``azimuth_deg``
+    (the truth's frame, where the multi-view reconstruction is aligned).
     """
     from treeform.dataset.synthetic import canonical_rbv
 
-    rec_levels, _, _ = canonical_rbv(rec_skeleton, 0.0)
+    rec_levels, _, _ = canonical_rbv(rec_skeleton, azimuth_deg)
     return [round(100.0 * float(np.abs(np.asarray(a) - np.asarray(b)).mean()), 3)
             for a, b in zip(rec_levels, gt_levels)]
+
+
+def _mrt_profile(metrics: dict) -> np.ndarray | None:
+    """The MRT per layer divided by the tree's height (a shape, free of the tree's scale)."""
+    h = float(metrics["tree_height_m"])
+    mrt = np.asarray(metrics["mrt_m"], np.float64)
+    return mrt / h if math.isfinite(h) and h > 0 and np.all(np.isfinite(mrt)) else None
 
 
 def _form_errors(rec, case) -> dict:
     from treeform.metrics import tree_metrics
 
-    g = tree_metrics(case.gt_skeleton)
-    r = tree_metrics(rec.skeleton)  # skeletons alone on both sides (the truth keeps no foliage)
+    # the LAI from each tree's own leaf triangles (cards count whole, as the paper's metric space)
+    g = tree_metrics(case.gt_skeleton, leaf_triangles=_leaves(case.gt_mesh))
+    r = tree_metrics(rec.skeleton, leaf_triangles=_leaves(rec.mesh))
     out = {}
-    for k, name in (("tree_height_m", "height"), ("trunk_diameter_m", "trunk_diameter"), ("biomass_m3", "biomass")):
+    for k, name in (("tree_height_m", "height"), ("trunk_diameter_m", "trunk_diameter"), ("biomass_m3", "biomass"),
+                    ("leaf_area_index", "lai")):
         gv, rv = float(g[k]), float(r[k])
         if math.isfinite(gv) and math.isfinite(rv) and gv > 0:
             out[f"rel_err_{name}"] = round(abs(rv - gv) / gv, 4)
     ga, ra = float(g["branching_angle_deg"]), float(r["branching_angle_deg"])
     if math.isfinite(ga) and math.isfinite(ra):
         out["abs_err_branching_angle_deg"] = round(abs(ra - ga), 3)
+    gm, rm = _mrt_profile(g), _mrt_profile(r)
+    if gm is not None and rm is not None:
+        out["mrt_err_pct"] = round(100.0 * float(np.abs(rm - gm).mean()), 3)
     return out
+
+
+def _leaves(mesh):
+    return None if mesh is None else mesh.triangles("leaves")
 
 
 def _front(rec, gt_mask) -> dict:
@@ -200,4 +223,115 @@ def score_reconstruction(rec, case, *, view_size: int = 160) -> dict:
         out.update(_form_errors(rec, case))
     if case.species is not None and getattr(rec, "species", None) is not None:
         out["species_correct"] = 1.0 if rec.species == case.species else 0.0
+    return out
+
+
+@dataclass
+class AlignedTree:
+    """A reconstruction moved into the truth's frame: ``mesh`` (Mesh), ``skeleton`` (TreeSkeleton)."""
+
+    mesh: object
+    skeleton: object
+
+
+def align_multiview(res, cameras: dict) -> tuple[AlignedTree, dict]:
+    """The multi-view reconstruction in the truth's frame, by the similarity of its cameras.
+
+    Structure from motion fixes the world up to scale, rotation and translation; the
+    similarity that best maps the registered camera centres onto the true ones
+    (:func:`treeform.sfm.evaluate.pose_errors`) maps the tree as well.
+
+    Parameters
+    ----------
+    res : MultiviewResult
+        ``sfm`` (in the tree's frame), ``mesh``, ``skeleton``.
+    cameras : dict
+        The true cameras (:attr:`Case.cameras`).
+
+    Returns
+    -------
+    AlignedTree, dict
+        The moved tree, and :func:`~treeform.sfm.evaluate.pose_errors`' figures.
+
+    Raises
+    ------
+    InputError
+        Fewer than 3 of the true photos registered: no similarity.
+    """
+    from dataclasses import replace
+
+    from treeform._shared.errors import InputError
+    from treeform.sfm.evaluate import pose_errors
+    from treeform.structures import Mesh, TreeSkeleton
+
+    pe = pose_errors(res.sfm, cameras)
+    if pe.get("scale") is None:
+        raise InputError(f"{pe['registered']} of {pe['total']} photos registered: too few to align with the truth")
+    s, R, t = float(pe["scale"]), np.asarray(pe["rotation"], np.float64), np.asarray(pe["translation"], np.float64)
+    parts = [replace(p, positions=(s * p.positions.astype(np.float64) @ R.T + t).astype(np.float32),
+                     normals=(p.normals.astype(np.float64) @ R.T).astype(np.float32)) for p in res.mesh.parts]
+    sk = res.skeleton
+    skel = TreeSkeleton(s * sk.positions @ R.T + t, sk.parent, None if sk.radius is None else s * sk.radius,
+                        sk.order, sk.age)
+    return AlignedTree(Mesh(parts), skel), pe
+
+
+def aligned_view_mesh(tree: AlignedTree, case):
+    """The aligned tree in the first photo camera's frame, about the true trunk base, at the true height.
+
+    A single-photo reconstruction knows its tree only relative to its own trunk base, so it is
+    compared about that base; the aligned multi-view tree stands where the route put it in
+    the world, so a crown placed right over a trunk base placed wrong still matches.
+    """
+    return canonical_mesh(tree.mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg,
+                          scale=reconstruction_scale(tree, case))
+
+
+def score_multiview(res, case, *, view_size: int = 160) -> dict:
+    """Every score of a multi-view reconstruction that a capture case supports.
+
+    The same scores as :func:`score_reconstruction` for the same truth, so the methods share
+    one table: the front silhouette is the aligned tree drawn by the first photo's true
+    camera against that photo's true mask; the novel views, RBV and tree-form errors are taken
+    in that photo camera's frame. The height is the route's own metric estimate (its
+    ``rel_err_height`` scores the scale from the cameras held at eye height); the views compare
+    shapes at the true height, as for every method. Also ``registration_rate`` and
+    ``camera_position_err`` (median, fraction of the capture's size). There is no own-mask
+    score: the route keeps no per-photo matte.
+
+    Parameters
+    ----------
+    res : MultiviewResult
+    case : Case
+        A capture case (``cameras`` and the truth).
+    view_size : int
+
+    Returns
+    -------
+    dict
+    """
+    from treeform.metrics import iou, reprojection_error
+    from treeform.render import Renderer
+    from treeform.sfm.result import render_camera
+
+    tree, pe = align_multiview(res, case.cameras)
+    out = {"registration_rate": round(float(pe["registration_rate"]), 4)}
+    if pe.get("position_median_rel") is not None:
+        out["camera_position_err"] = round(float(pe["position_median_rel"]), 5)
+    first = case.cameras[min(case.cameras)]  # the first photo (the single-photo methods see it alone)
+    renderer = Renderer(render_camera(first["K"], first["cam_to_world"], first["size"], near=0.1, far=1000.0),
+                        samples=1)
+    try:
+        mask = renderer.render(tree.mesh).mask > 0
+    finally:
+        renderer.release()
+    gt = np.asarray(case.gt_mask, bool)
+    out["front_error"] = round(float(reprojection_error(mask, gt)), 4)
+    out["front_iou"] = round(float(iou(mask, gt)), 4)
+    gt_mesh = canonical_mesh(case.gt_mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
+    out.update(novel_view_ious(gt_mesh, aligned_view_mesh(tree, case), size=view_size))
+    if case.rbv is not None:
+        for i, e in enumerate(rbv_errors(tree.skeleton, case.rbv, azimuth_deg=case.azimuth_deg)):
+            out[f"rbv_err_l{i + 1}"] = e
+    out.update(_form_errors(tree, case))
     return out

@@ -17,7 +17,11 @@ SUMMARY_SCORES = (
     ("rel_err_height", "height rel. err."),
     ("rel_err_trunk_diameter", "trunk diam. rel. err."),
     ("abs_err_branching_angle_deg", "branch angle err. °"),
+    ("rel_err_lai", "LAI rel. err."),
+    ("rel_err_biomass", "biomass rel. err."),
+    ("mrt_err_pct", "MRT err. % of height"),
     ("species_correct", "species accuracy"),
+    ("registration_rate", "photos registered"),
     ("seconds", "seconds / case"),
 )
 """(score key, column title) of the summary, in order."""

@@ -63,7 +63,8 @@ def _box_plot_png(res: dict, columns, out_dir: Path) -> str | None:
 
 
 _FORM = (("rel_err_height", "height rel. err."), ("rel_err_trunk_diameter", "trunk diam. rel. err."),
-         ("rel_err_biomass", "biomass rel. err."), ("abs_err_branching_angle_deg", "branch angle err. °"))
+         ("rel_err_biomass", "biomass rel. err."), ("abs_err_branching_angle_deg", "branch angle err. °"),
+         ("rel_err_lai", "LAI rel. err."), ("mrt_err_pct", "MRT err. % of height"))
 
 
 def _species_box_plots(res: dict, out_dir: Path) -> list:

@@ -1,4 +1,4 @@
-"""``report.html`` for one run (``reconstruct`` / ``grow`` / ``cloud`` with ``--report``).
+"""``report.html`` for one run (``reconstruct`` / ``grow`` / ``multiview`` / ``cloud`` with ``--report``).
 
 Reads what the run wrote — ``preview.png``, ``metrics.json`` (with its stage ``timings``),
 ``tree.glb`` — or what the caller hands over (the metrics, a GLB elsewhere, pictures) and
@@ -20,6 +20,8 @@ from treeform._shared.errors import InputError
 
 __all__ = ["write_run_report"]
 
+PREVIEW_CAPTION = "preview: photo, segmentation, front / side / top renders"
+
 
 def _flat(d: dict, prefix: str = "") -> list:
     rows = []
@@ -39,7 +41,7 @@ def _flat(d: dict, prefix: str = "") -> list:
 
 
 def write_run_report(out_dir, *, title: str, pictures=(), progress=None, metrics: dict | None = None,
-                     glb=None) -> Path:
+                     glb=None, preview_caption: str = PREVIEW_CAPTION) -> Path:
     """Write ``out_dir/report.html`` for the outputs of a finished run.
 
     Parameters
@@ -57,6 +59,8 @@ def write_run_report(out_dir, *, title: str, pictures=(), progress=None, metrics
     glb : path, optional
         The model for the 3D viewer, instead of ``out_dir/tree.glb``; it may lie elsewhere:
         its bytes go into ``out_dir`` as ``NAME.glb.js``.
+    preview_caption : str
+        The caption of ``preview.png`` (what the run's preview shows).
 
     Returns
     -------
@@ -81,7 +85,7 @@ def write_run_report(out_dir, *, title: str, pictures=(), progress=None, metrics
     with timer.stage("report"):
         pics = []
         if (out_dir / "preview.png").exists():
-            pics.append(("preview: photo, segmentation, front / side / top renders", "preview.png"))
+            pics.append((preview_caption, "preview.png"))
         for i, (caption, img) in enumerate(pictures):
             name = f"report_{i}.png"
             Image.fromarray(np.asarray(img, np.uint8)).save(out_dir / name)

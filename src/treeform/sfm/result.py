@@ -14,7 +14,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 
-__all__ = ["SfmResult"]
+__all__ = ["SfmResult", "render_camera"]
 
 
 @dataclass
@@ -97,12 +97,7 @@ class SfmResult:
         The principal point is taken at the image centre and lens distortion is ignored
         (what the renderer can draw); ``scale`` resizes the image (e.g. 0.5 for half size).
         """
-        from treeform.structures import Camera
-
-        R, c = self.cam_to_world[i, :3, :3], self.cam_to_world[i, :3, 3]
-        w, h = (max(1, int(round(v * scale))) for v in self.sizes[i])
-        fov_y = float(np.degrees(2.0 * np.arctan(0.5 * self.sizes[i, 1] / self.K[i, 1, 1])))
-        return Camera(w, h, fov_y, tuple(c), tuple(c + R[:, 2]), tuple(-R[:, 1]), near=near, far=far)
+        return render_camera(self.K[i], self.cam_to_world[i], self.sizes[i], near=near, far=far, scale=scale)
 
     def transformed(self, scale: float, rotation: np.ndarray, translation: np.ndarray) -> "SfmResult":
         """The same model under x -> scale * R x + t (cameras stay rigid, their centres move)."""
@@ -131,3 +126,40 @@ class SfmResult:
                              f"tracks {len(self.tracks)}")
         if p and not np.all(np.isfinite(self.points)):
             raise InputError("SfmResult.points: must be finite")
+
+
+def render_camera(K, cam_to_world, size, *, near: float = 0.1, far: float = 1000.0, scale: float = 1.0):
+    """An OpenCV camera (x right, y down, z forward) as a treeform :class:`~treeform.structures.Camera`.
+
+    The inverse of :func:`treeform.sfm.evaluate.opencv_camera`: the principal point is taken at
+    the image centre and lens distortion is ignored (what the renderer can draw).
+
+    Parameters
+    ----------
+    K : array_like, shape (3, 3)
+    cam_to_world : array_like, shape (4, 4)
+    size : (width, height)
+        Pixels of the image ``K`` belongs to.
+    near, far : float, keyword-only
+    scale : float, keyword-only
+        Resizes the image (e.g. 0.5 for half size; the field of view stays).
+
+    Returns
+    -------
+    Camera
+
+    Examples
+    --------
+    >>> T = np.eye(4); T[:3, 3] = (0.0, 1.0, 5.0); T[:3, 1:3] *= -1  # at z = 5, looking down -Z
+    >>> cam = render_camera(np.array([[100.0, 0, 50], [0, 100.0, 40], [0, 0, 1]]), T, (100, 80))
+    >>> cam.target, cam.up, round(cam.fov_y, 2)
+    ((0.0, 1.0, 4.0), (0.0, 1.0, 0.0), 43.6)
+    """
+    from treeform.structures import Camera
+
+    T = np.asarray(cam_to_world, np.float64).reshape(4, 4)
+    R, c = T[:3, :3], T[:3, 3]
+    sw, sh = (float(v) for v in size)
+    w, h = max(1, int(round(sw * scale))), max(1, int(round(sh * scale)))
+    fov_y = float(np.degrees(2.0 * np.arctan(0.5 * sh / float(np.asarray(K, np.float64)[1, 1]))))
+    return Camera(w, h, fov_y, tuple(c), tuple(c + R[:, 2]), tuple(-R[:, 1]), near=near, far=far)

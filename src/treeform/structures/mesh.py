@@ -135,6 +135,32 @@ class Mesh:
         for p in self.parts:
             p.validate()
 
+    def triangles(self, material: str) -> np.ndarray | None:
+        """Corner positions of the triangles of every part drawn with the material ``material``.
+
+        The same selection as the GLB reader's (:func:`treeform.io.gltf.read_glb_geometry`
+        takes the triangles of the ``leaves`` material for the leaf area index).
+
+        Returns
+        -------
+        ndarray, shape (T, 3, 3), float64, or None
+            None when no part uses that material or those parts hold no triangle.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+        >>> quad = MeshPart(corners, np.zeros((4, 3)), np.zeros((4, 2)), None, np.array([0, 1, 2, 0, 2, 3]),
+        ...                 Material("leaves"))
+        >>> Mesh([quad]).triangles("leaves").shape
+        (2, 3, 3)
+        >>> Mesh([quad]).triangles("bark") is None
+        True
+        """
+        tris = [np.asarray(p.positions, np.float64)[np.asarray(p.indices, np.int64).reshape(-1, 3)]
+                for p in self.parts if p.material.name == material and p.n_triangles]
+        return np.concatenate(tris) if tris else None
+
     def save(self, path):
         arrays = {}
         for i, p in enumerate(self.parts):

@@ -100,3 +100,43 @@ def test_an_impostor_of_the_multiview_tree(run, tmp_path):
     assert imp.color.shape == (6, 64, 64, 3) and (tmp_path / "impostor" / "rdm.npz").is_file()
     means = imp.color.reshape(6, -1, 3).mean(1)
     assert np.all(means[:, 1] >= means[:, 2])  # foliage-coloured on every side
+
+
+def test_a_report_of_the_multiview_run(run, tmp_path):
+    """`multiview --report`: the run's page with its preview, metrics and the model for the viewer."""
+    import shutil
+
+    from treeform.report import write_run_report
+
+    out = tmp_path / "out"
+    shutil.copytree(run[2], out)
+    page = write_run_report(out, title="multiview", preview_caption="preview: the model beside three photos")
+    text = page.read_text()
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert "preview: the model beside three photos" in text and "preview.png" in text
+    assert (out / "tree.glb.js").stat().st_size > (out / "tree.glb").stat().st_size  # base64 of the GLB
+    assert f">{metrics['registered']}<" in text  # the metrics table holds the run's numbers
+
+
+def test_the_evaluation_scores_the_multiview_tree_against_the_truth(run, tmp_path, monkeypatch):
+    """`treeform eval --cases captures:N --methods envelope,multiview`: the same truth for both routes."""
+    from treeform.evaluation import cases as cases_mod
+    from treeform.evaluation import run as ev
+    from treeform.evaluation.cases import capture_case
+
+    cap, res, _ = run
+    monkeypatch.setattr(cases_mod, "load_case", lambda name, size=256: capture_case(cap, name))
+    entry = ev._entry
+    monkeypatch.setattr(ev, "_entry", lambda m: (lambda *a, **k: res) if m == "multiview" else entry(m))
+    r = ev.run_case("capture-0-0", ["envelope", "multiview"], folder=tmp_path / "case", glb=True)
+    mv, env = r["methods"]["multiview"], r["methods"]["envelope"]
+    assert mv["registration_rate"] == 1.0 and mv["camera_position_err"] < 0.02
+    assert mv["front_iou"] > 0.5 and "front_iou_own" not in mv  # the route keeps no per-photo matte
+    assert mv["rel_err_height"] < 0.3  # metric scale from eye-height cameras
+    assert {"iou_side", "rbv_err_l5", "mrt_err_pct", "rel_err_lai"} <= set(mv) and "species_correct" not in mv
+    assert env["front_iou"] > 0.5  # the envelope route on the first photo, scored against the same truth
+    # what the photos all around buy: the back of the tree (0.63 against 0.22 when written)
+    assert mv["iou_back"] > env["iou_back"] + 0.2
+    for f in ("multiview_front.png", "multiview_side.png", "multiview.glb", "gt.glb", "envelope.glb"):
+        assert (tmp_path / "case" / f).is_file()
+    assert cap.out.exists()  # a case made from an existing capture does not remove it
