@@ -63,6 +63,9 @@ class Case:
         axes, the truth's frame: :meth:`treeform.sfm.SfmResult.cameras_json`'s format).
     workdir : Path or None
         A temporary folder the case owns (its capture); :meth:`close` removes it.
+    gt_metrics : dict or None
+        The true tree's :func:`treeform.metrics.tree_metrics`, filled by the first score that
+        needs them (shared by the methods scored on the case).
     """
 
     name: str
@@ -78,6 +81,7 @@ class Case:
     photos: Path | None = None
     cameras: dict | None = field(default=None, repr=False)
     workdir: Path | None = None
+    gt_metrics: dict | None = field(default=None, repr=False)
 
     def close(self) -> None:
         """Remove the case's temporary files (a capture's photos); safe to call twice."""

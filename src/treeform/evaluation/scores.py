@@ -147,8 +147,11 @@ def _mrt_profile(metrics: dict) -> np.ndarray | None:
 def _form_errors(rec, case) -> dict:
     from treeform.metrics import tree_metrics
 
-    # the LAI from each tree's own leaf triangles (cards count whole, as the paper's metric space)
-    g = tree_metrics(case.gt_skeleton, leaf_triangles=_leaves(case.gt_mesh))
+    # the LAI from each tree's own leaf triangles (cards count whole, as the paper's metric space);
+    # the truth's metrics once per case, whichever methods are scored on it
+    if case.gt_metrics is None:
+        case.gt_metrics = tree_metrics(case.gt_skeleton, leaf_triangles=_leaves(case.gt_mesh))
+    g = case.gt_metrics
     r = tree_metrics(rec.skeleton, leaf_triangles=_leaves(rec.mesh))
     out = {}
     for k, name in (("tree_height_m", "height"), ("trunk_diameter_m", "trunk_diameter"), ("biomass_m3", "biomass"),
