@@ -44,11 +44,13 @@ def test_same_input_same_output(sfm_result, capture, colmap):
     again = run_sfm(load_photos(capture[0]), seed=0)
     assert again.names == sfm_result.names
     # bitwise equal in every run we made but one (101 runs): there 5 of 1682 points differed
-    # (see treeform.sfm.colmap, determinism); the model must in any case be the same
+    # (see treeform.sfm.colmap, determinism); the model must in any case be the same. (The
+    # rotation error of a bitwise-equal model is 3e-5 degrees: it read 0.035-0.054 degrees, and
+    # once failed a 0.05 bound, while pose_errors took the angle by arccos of the trace.)
     assert abs(len(again.points) - len(sfm_result.points)) <= 0.01 * len(sfm_result.points)
     err = pose_errors(again, sfm_result.cameras_json())
     assert err["scale"] == pytest.approx(1.0, abs=1e-2) and err["position_max_rel"] < 1e-3
-    assert err["rotation_max_deg"] < 0.05
+    assert err["rotation_max_deg"] < 0.02
     if len(again.points) == len(sfm_result.points):
         np.testing.assert_allclose(again.cam_to_world, sfm_result.cam_to_world, atol=1e-9)
         np.testing.assert_allclose(again.points, sfm_result.points, atol=1e-9)
