@@ -13,7 +13,7 @@ are false trees. Placement error: the distance between each found tree's positio
 truth, both relative to the reference tree, divided by the composite's smallest spacing
 between two trees (goal: within 10 %).
 
-Run: `.venv/bin/python benchmarks/bench_scene.py [--cases 40] [--seed 0] [--spacing 5]`
+Run: `.venv/bin/python benchmarks/bench_scene.py [--cases 40] [--seed 0] [--spacing 5] [--feet rules|learned|both]`
 """
 
 from __future__ import annotations
@@ -91,6 +91,9 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--spacing", type=float, default=5.0)
     ap.add_argument("--write", type=Path, default=ROOT / "out" / "bench_scene.json")
+    ap.add_argument("--feet", default="rules", help="where the feet come from: rules, learned or both "
+                    "(find_tree_instances' feet=)")
+    ap.add_argument("--feet-threshold", type=float, default=0.4, help="lowest heatmap peak taken as a foot")
     args = ap.parse_args()
     sprites = load_cutouts(data_path("library"))
     rng = np.random.default_rng(args.seed)
@@ -102,7 +105,7 @@ def main():
         sc, p, h, spacing = c
         t0 = time.perf_counter()
         try:
-            inst = find_tree_instances(sc["image"])
+            inst = find_tree_instances(sc["image"], feet=args.feet, feet_threshold=args.feet_threshold)
         except NoTreeFoundError:
             inst = []
         times.append(time.perf_counter() - t0)
@@ -118,7 +121,8 @@ def main():
         "placement_error_over_spacing": {"median": round(float(np.median(errs)), 4) if errs else None,
                                          "p90": round(float(np.percentile(errs, 90)), 4) if errs else None,
                                          "share_le_0.1": round(float(np.mean(np.array(errs) <= 0.1)), 4) if errs else None},
-        "seconds_median": round(statistics.median(times), 3),
+        "seconds_median": round(statistics.median(times), 3), "seed": args.seed, "feet": args.feet,
+        "feet_threshold": args.feet_threshold,
     }
     print(f"# {machine()}\n{len(rows)} composites, {trees} trees: found {matched} ({100 * matched / trees:.1f} %), "
           f"{false} false trees; every tree and no other in {100 * all_found:.0f} % of the composites")

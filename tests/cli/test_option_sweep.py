@@ -46,6 +46,7 @@ BASE = {
     "dataset show": ["{dataset}", "--out", "{out}.png"],
     "dataset capture": ["{out}"],
     "train seg": ["--data", "{dataset}", "--out", "{out}", "--steps", "1"],
+    "train feet": ["--cutouts", "{library}", "--out", "{out}", "--steps", "1"],
     "train species": ["--data", "{dataset}", "--out", "{out}", "--epochs", "1"],
     "train rbv": ["--data", "{dataset}", "--out", "{out}", "--epochs", "1"],
     "library process": ["{library}", "--cache", "{out}"],

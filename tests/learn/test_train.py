@@ -210,3 +210,49 @@ def test_a_checkpoint_from_before_the_new_settings_resumes(tmp_path, tiny_data):
 
     with pytest.raises(InputError, match="other settings"):
         train_seg(tiny_data, tmp_path / "r", **{**opts, "tree_dice": 0.5})
+
+
+def test_feet_training_resumes_to_the_same_weights_and_exports_a_detector(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    from treeform._shared.errors import InputError
+    from treeform.dataset.scenes import cutout_split
+    from treeform.learn.infer import FeetDetector
+    from treeform.learn.train_feet import FeetTrainConfig, train_feet
+
+    src = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "billboards"
+    if not src.is_dir():
+        pytest.skip("../shared/data/billboards is not available")
+    cut = tmp_path / "cutouts"  # a few cut-outs of each side of the split
+    cut.mkdir()
+    files = sorted(src.glob("*.png"))
+    for side in ("train", "test"):
+        for f in [f for f in files if cutout_split(f.name) == side][:3]:
+            shutil.copy(f, cut / f.name)
+    with pytest.raises(InputError, match="multiple of 16"):
+        FeetTrainConfig(width=100)
+    opts = dict(steps=4, batch=2, width=96, height=64, channels=4, chunk=4, repeats=1, checkpoint_every=2,
+                threads=1, test_scenes=2)
+    a = train_feet(cut, tmp_path / "a", **opts)
+    with pytest.raises(KeyboardInterrupt):
+        train_feet(cut, tmp_path / "b", progress=_fail_at(3), **opts)  # killed after the step-2 checkpoint
+    with pytest.raises(InputError, match="other settings"):
+        train_feet(cut, tmp_path / "b", **{**opts, "lr": 1e-2})
+    train_feet(cut, tmp_path / "b", workers=1, **{**opts, "checkpoint_every": 1})
+    wa = torch.load(tmp_path / "a" / "checkpoint.pt", weights_only=False)["model"]
+    wb = torch.load(tmp_path / "b" / "checkpoint.pt", weights_only=False)["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert a["steps"] == 4 and {"recall", "precision"} <= set(a["test"])
+    det = FeetDetector(tmp_path / "a" / "model.onnx")
+    assert det.side == 96 and det.detect(np.zeros((64, 96, 3), np.uint8)).shape[1] == 3
+    # the ONNX graph computes what the torch network does
+    from treeform.learn.nets.feetnet import FeetNet
+
+    net = FeetNet(4).eval()
+    net.load_state_dict(wa)
+    x = np.random.default_rng(0).random((1, 3, 64, 96)).astype(np.float32)
+    with torch.no_grad():
+        ref = net(torch.from_numpy(x)).numpy()
+    got = det.session.run(None, {"image": x})[0]
+    assert np.abs(got - ref).max() < 1e-4

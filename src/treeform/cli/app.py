@@ -48,6 +48,7 @@ def _choices(name: str, *values: str) -> type:
 
 Crown = _choices("Crown", "round", "conical")
 SegmenterName = _choices("SegmenterName", "learned", "classical")
+FeetSource = _choices("FeetSource", "rules", "learned", "both")
 SEGMENTER_OPTION = typer.Option(SegmenterName(DEFAULT_SEGMENTER), "--segmenter",
                                 help=f"Tree segmentation: 'classical' (colour rules + graph cut) or 'learned' (network); "
                                      f"default {DEFAULT_SEGMENTER}.")
@@ -182,12 +183,19 @@ def reconstruct(
                                                   help="--all-trees: metres from the ground to the camera (default "
                                                        "1.6; the scene's scale, unless --height gives the tallest "
                                                        "tree's)."),
+    feet: Optional[FeetSource] = typer.Option(None, "--feet", help="--all-trees: where each tree's trunk foot comes "
+                                              "from: 'rules' (the mask's lowest points where wood rises; default), "
+                                              "'learned' (the foot detector feet.onnx; the rules where it finds none) "
+                                              "or 'both'."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
 
     if camera_height is not None and not all_trees:
         typer.echo("error: --camera-height works with --all-trees", err=True)
+        raise typer.Exit(2)
+    if feet is not None and not all_trees:
+        typer.echo("error: --feet works with --all-trees", err=True)
         raise typer.Exit(2)
     if all_trees and (mask is not None or report or impostor):
         bad = [n for n, v in (("--mask", mask), ("--report", report), ("--impostor", impostor)) if v]
@@ -256,6 +264,7 @@ def reconstruct(
         kw["tree_height"] = height  # None: the scale comes from --camera-height
         res = run_api(reconstruct_all, photo, out=out, seed=seed, method_api=api, method=method.value,
                       camera_height=1.6 if camera_height is None else camera_height, inputs=(photo,),
+                      feet=(feet or FeetSource.rules).value,
                       stages=SCENE_STAGES, **kw)
         print_scene_summary(res)
         return

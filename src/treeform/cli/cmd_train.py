@@ -1,4 +1,4 @@
-"""``treeform train seg``: train a perception network (needs the ``train`` extra: torch, onnx)."""
+"""``treeform train seg|feet|species|rbv``: train a perception network (needs the ``train`` extra: torch, onnx)."""
 
 from __future__ import annotations
 
@@ -67,6 +67,46 @@ def seg_cmd(
                    + ", ".join(f"{k} {100 * v:.1f} %" for k, v in r["iou"].items()))
     if c:
         typer.echo(f"test cut-outs: median tree IoU {c['tree_iou_median']:.3f} over {c['n']} scenes")
+    typer.echo(f"weights: {Path(out) / 'model.onnx'}")
+
+
+@train_app.command("feet")
+def feet_cmd(
+    cutouts: Path = typer.Option(..., "--cutouts", help="Folder of RGBA tree cut-outs: the 'train' side of a fixed "
+                                 "split makes the scenes, the 'test' side scores the run."),
+    out: Path = typer.Option(..., "--out", "-o", help="Run directory: checkpoint.pt, model.onnx, metrics.json."),
+    photos: Optional[Path] = typer.Option(None, "--photos", help="Folder of real photos: one side of a fixed split "
+                                          "becomes blurred backgrounds."),
+    renders: Optional[Path] = typer.Option(None, "--renders", help="Synthetic trees (treeform dataset generate, or a "
+                                           "sprite pack) drawn beside the cut-outs."),
+    render_fraction: float = typer.Option(0.5, "--render-fraction", help="Share of the trees drawn from --renders."),
+    steps: int = typer.Option(3000, "--steps", help="Optimiser steps."),
+    batch: int = typer.Option(16, "--batch", help="Scenes per step."),
+    seed: int = seed_option(),
+    device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto (cuda when torch sees one)."),
+    workers: int = typer.Option(0, "--workers", help="Processes composing scenes ahead of the optimiser "
+                                "(0 = in line; same scenes either way)."),
+    repeats: int = typer.Option(2, "--repeats", help="Passes (with flips) over each round's composed scenes."),
+    init: Optional[Path] = typer.Option(None, "--init", help="Start from these FeetNet ONNX weights (fine-tuning)."),
+    lr: float = typer.Option(2e-3, "--lr", help="Peak learning rate (lower when fine-tuning, e.g. 1e-3)."),
+    max_minutes: float = typer.Option(0.0, "--max-minutes", help="Stop cleanly (checkpoint, ONNX, metrics) after "
+                                      "this many minutes of training (0 = no limit)."),
+    test_scenes: int = typer.Option(200, "--test-scenes", min=2, max=100000,
+                                    help="Scenes of the fixed test split scored at the end."),
+):
+    """Trunk-foot detector (heatmap of where each tree meets the ground); resumes from OUT/checkpoint.pt."""
+    from treeform.cli.progress import TrainProgress
+    from treeform.learn.train_feet import train_feet
+
+    m = run_api(train_feet, cutouts, out, photos=photos, renders=renders, render_fraction=render_fraction,
+                steps=steps, batch=batch, seed=seed, device=device, workers=workers, repeats=repeats,
+                init=str(init) if init else "", lr=lr, max_minutes=max_minutes, test_scenes=test_scenes,
+                display=TrainProgress("feet"),
+                inputs=(("--cutouts", cutouts), ("--photos", photos), ("--renders", renders), ("--init", init)))
+    t = m.get("test") or {}
+    if t:
+        typer.echo(f"test feet: recall {100 * t['recall']:.1f} %, precision {100 * t['precision']:.1f} %, "
+                   f"median error {t['median_error_px']} px")
     typer.echo(f"weights: {Path(out) / 'model.onnx'}")
 
 

@@ -1,7 +1,7 @@
 """Export of trained networks to ONNX, the format the package ships and runs (onnxruntime).
 
 The graph takes ``image`` (N, 3, H, W) float RGB in [0, 1] with free H and W (multiples of
-8) for the segmenter, fixed sizes for the mask networks; metadata (``treeform_kind``,
+8) for the segmenter (multiples of 16 for the foot detector), fixed sizes for the mask networks; metadata (``treeform_kind``,
 training settings) travels in the model's ``metadata_props``.
 """
 
@@ -16,8 +16,9 @@ _IO = {
     "seg": (("image",), ("logits",), {"image": {0: "n", 2: "h", 3: "w"}, "logits": {0: "n", 2: "h", 3: "w"}}),
     "species": (("mask",), ("logits",), {"mask": {0: "n"}, "logits": {0: "n"}}),
     "rbv": (("mask",), ("rbv",), {"mask": {0: "n"}, "rbv": {0: "n"}}),
+    "feet": (("image",), ("heat",), {"image": {0: "n", 2: "h", 3: "w"}, "heat": {0: "n", 2: "h4", 3: "w4"}}),
 }
-_EXAMPLE = {"seg": (1, 3, 224, 224), "species": (1, 3, 96, 96), "rbv": (1, 3, 96, 96)}
+_EXAMPLE = {"seg": (1, 3, 224, 224), "species": (1, 3, 96, 96), "rbv": (1, 3, 96, 96), "feet": (1, 3, 288, 384)}
 
 
 def export_onnx(model, path, *, kind: str, metadata: dict | None = None, example_shape=None) -> Path:
@@ -27,7 +28,7 @@ def export_onnx(model, path, *, kind: str, metadata: dict | None = None, example
     ----------
     model : torch.nn.Module
     path : path
-    kind : {'seg', 'species', 'rbv'}
+    kind : {'seg', 'species', 'rbv', 'feet'}
     metadata : dict, optional
         Extra ``metadata_props`` (values stored as strings).
     example_shape : tuple, optional

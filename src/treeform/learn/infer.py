@@ -15,14 +15,15 @@ import numpy as np
 
 from treeform._shared.errors import InputError, ModelError
 
-__all__ = ["WEIGHTS", "weights_path", "Segmenter", "load_session", "main_tree", "focus_map", "predict_species", "predict_rbv"]
+__all__ = ["WEIGHTS", "weights_path", "Segmenter", "FeetDetector", "load_session", "main_tree", "focus_map",
+           "predict_species", "predict_rbv"]
 
-WEIGHTS = {"seg": "seg.onnx", "species": "species.onnx", "rbv": "rbv.onnx"}
+WEIGHTS = {"seg": "seg.onnx", "species": "species.onnx", "rbv": "rbv.onnx", "feet": "feet.onnx"}
 """File name of each network's shipped weights."""
 
 
 def weights_path(kind: str) -> Path:
-    """Path of the shipped weights of network ``kind`` ('seg', 'species', 'rbv')."""
+    """Path of the shipped weights of network ``kind`` ('seg', 'species', 'rbv', 'feet')."""
     if kind not in WEIGHTS:
         raise InputError(f"network: expected one of {', '.join(WEIGHTS)}, got {kind!r}")
     return Path(__file__).resolve().parent / "weights" / WEIGHTS[kind]
@@ -192,6 +193,64 @@ class Segmenter:
             tree = main_tree(tree)
         lab = np.where(p[..., 2] > p[..., 1], 2, 1).astype(np.uint8)
         return np.where(tree, lab, 0).astype(np.uint8)
+
+
+class FeetDetector:
+    """The trunk-foot detector (:class:`~treeform.learn.nets.feetnet.FeetNet`) on onnxruntime.
+
+    The photo is seen with its long side at ``side`` pixels (padded to a multiple of 16);
+    the heatmap's peaks (:func:`~treeform.learn.feet.heatmap_peaks`) are the feet.
+
+    Parameters
+    ----------
+    path : path, optional
+        ONNX weights; default the shipped ``feet.onnx``.
+    side : int, optional
+        Long side at which the network sees the photo (default: the model's ``infer_side``, else 384).
+    """
+
+    def __init__(self, path=None, *, side: int | None = None):
+        self.path = Path(path) if path is not None else weights_path("feet")
+        self.session, self.meta = load_session(self.path)
+        if self.meta.get("treeform_kind", "feet") != "feet":
+            raise ModelError(f"{self.path}: holds a {self.meta['treeform_kind']!r} network, not the foot detector; "
+                             "rebuild the weights with `make weights`")
+        self.side = int(side or self.meta.get("infer_side", 384))
+
+    def heatmap(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+        """Foot probabilities (h, w) and offsets (2, h, w) at stride 4 of the scaled photo, and its scale (sx, sy).
+
+        A cell (i, j) with offset (ox, oy) is the scaled photo's pixel ((j + ox) * 4, (i + oy) * 4).
+        """
+        import cv2
+
+        from treeform.learn.feet import STRIDE
+
+        img = np.asarray(image)
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
+        H, W = img.shape[:2]
+        s = self.side / max(H, W)
+        h, w = max(16, int(round(H * s))), max(16, int(round(W * s)))
+        small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+        ph, pw = (-h) % 16, (-w) % 16
+        if ph or pw:
+            small = cv2.copyMakeBorder(small, 0, ph, 0, pw, cv2.BORDER_REPLICATE)
+        x = small.astype(np.float32).transpose(2, 0, 1)[None] / 255.0
+        out = self.session.run(None, {"image": x})[0][0].astype(np.float64)
+        hh, ww = -(-h // STRIDE), -(-w // STRIDE)
+        prob = 1.0 / (1.0 + np.exp(-out[0, :hh, :ww]))
+        offset = 1.0 / (1.0 + np.exp(-out[1:3, :hh, :ww]))
+        return prob, offset, (w / W, h / H)
+
+    def detect(self, image: np.ndarray, *, threshold: float = 0.3, min_distance: float = 2.0) -> np.ndarray:
+        """Feet of an (H, W, 3) uint8 RGB photo: (N, 3) rows (u, v, score) in its pixels, strongest first."""
+        from treeform.learn.feet import heatmap_peaks
+
+        prob, offset, scale = self.heatmap(image)
+        peaks = heatmap_peaks(prob, offset, threshold=threshold, min_distance=min_distance)
+        peaks[:, :2] = (peaks[:, :2] + 0.5) / np.asarray(scale) - 0.5  # the scaled photo's pixel centres back to the photo's
+        return peaks
 
 
 def _mask_run(kind: str, labels: np.ndarray, weights=None) -> np.ndarray:

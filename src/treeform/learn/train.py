@@ -275,6 +275,36 @@ def _save_atomic(obj, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def _resume(torch, ckpt_path: Path, model, opt, defaults: dict, settings: dict, *,
+            ignore: tuple = ()) -> tuple[int, float]:
+    """Load a killed run's checkpoint into ``model`` and ``opt``; (step, seconds trained so far).
+
+    (0, 0.0) without a checkpoint. Settings added since the checkpoint was written take their
+    ``defaults`` (they did not exist then); keys in ``ignore`` (e.g. a wall-clock limit) may
+    differ. A checkpoint of other settings is one clear error.
+    """
+    if not ckpt_path.exists():
+        return 0, 0.0
+    state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+    free = dict.fromkeys(ignore, 0)
+    if not _same_run({**defaults, **(state.get("config") or {}), **free}, {**settings, **free}):
+        raise InputError(f"{ckpt_path}: written with other settings; use another --out or delete it")
+    model.load_state_dict(state["model"])
+    opt.load_state_dict(state["optimizer"])
+    if "torch_rng" in state:  # dropout draws continue where the killed run stopped
+        torch.set_rng_state(state["torch_rng"])
+    return int(state["step"]), float(state.get("seconds", 0.0))
+
+
+def _init_from_onnx(torch, model, weights, rounds, dev, *, new_layers: tuple) -> None:
+    """Fine-tuning: shipped ONNX weights into ``model``, BatchNorm statistics from the first round's scenes."""
+    from treeform.learn.export import load_onnx_into
+
+    first = rounds.get(0)[0][:32]
+    load_onnx_into(model, weights, calibrate=torch.from_numpy(first).to(dev).permute(0, 3, 1, 2).float() / 255.0,
+                   new_layers=new_layers)
+
+
 def _lr_at(step: int, total: int, peak: float) -> float:
     warm = max(1, total // 30)
     if step < warm:
@@ -341,29 +371,14 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
         torch.backends.cudnn.benchmark = True
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     ckpt_path = out / "checkpoint.pt"
-    step, prior_seconds = 0, 0.0
-    if ckpt_path.exists():
-        state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        # settings added since the checkpoint was written take their defaults (they did not exist then)
-        if not _same_run({**asdict(SegTrainConfig()), **(state.get("config") or {})}, asdict(cfg)):
-            raise InputError(f"{ckpt_path}: written with other settings; use another --out or delete it")
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["optimizer"])
-        step = int(state["step"])
-        prior_seconds = float(state.get("seconds", 0.0))
-        if "torch_rng" in state:  # dropout draws continue where the killed run stopped
-            torch.set_rng_state(state["torch_rng"])
+    step, prior_seconds = _resume(torch, ckpt_path, model, opt, asdict(SegTrainConfig()), asdict(cfg))
     (out / "config.json").write_text(json.dumps({"network": "seg", "data": str(data), "test_data": str(test_data),
                                                  "cutouts": str(cutouts), "photos": str(photos), **asdict(cfg)},
                                                 indent=2))
     per_round = max(1, cfg.chunk * cfg.repeats // cfg.batch)
     rounds = _Rounds(make_stream, cfg.chunk, cfg.workers)
-    if cfg.init and step == 0:  # fine-tuning: BatchNorm statistics from the first round's scenes
-        from treeform.learn.export import load_onnx_into
-
-        first = rounds.get(0)[0][:32]
-        load_onnx_into(model, cfg.init, calibrate=torch.from_numpy(first).to(dev).permute(0, 3, 1, 2).float() / 255.0,
-                       new_layers=("full", "refine"))
+    if cfg.init and step == 0:
+        _init_from_onnx(torch, model, cfg.init, rounds, dev, new_layers=("full", "refine"))
     try:
         _optimise(torch, model, opt, rounds, cfg, dev, step, per_round, out, prior_seconds, progress)
     finally:

@@ -10,6 +10,10 @@ crown seen through gaps falls apart), and splits each cluster at its trunks:
   mask, or is tall upright wood low in the cluster standing in undergrowth, its foot then on
   the ground line below it (:func:`trunk_feet`); a hanging twig, a crown's lobe or a branch
   has neither, or has more of its tree below it;
+- or (``feet='learned'`` / ``'both'``) a trunk's foot is a peak of the learned foot detector's
+  heatmap (:class:`~treeform.learn.infer.FeetDetector`, CenterNet-style), moved to the lowest
+  point of the mask below it (:func:`snap_feet`); 'learned' uses the rules only in clusters with
+  no learned foot, 'both' takes the feet of either (:data:`FEET_METHODS`);
 - two trunks or more in one cluster: the cluster is split between them, each pixel going to
   the trunk nearest it inside the mask (:func:`split_at_trunks`);
 - each instance's **base** is its trunk's foot (the pixel where the tree meets the ground), or,
@@ -18,7 +22,8 @@ crown seen through gaps falls apart), and splits each cluster at its trunks:
   blurred ones (median sharpness below ``focus_ratio`` of the sharpest instance's: trees far
   behind, out of focus).
 
-Functions over arrays; the network is :class:`~treeform.learn.infer.Segmenter`.
+Functions over arrays; the networks are :class:`~treeform.learn.infer.Segmenter` and
+:class:`~treeform.learn.infer.FeetDetector`.
 """
 
 from __future__ import annotations
@@ -28,8 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from treeform._shared.errors import InputError, NoTreeFoundError
+from treeform.segment.learned_feet import snap_feet, union_feet
 
-__all__ = ["TreeInstance", "find_tree_instances", "all_trees_probability", "split_at_trunks", "trunk_feet"]
+__all__ = ["TreeInstance", "find_tree_instances", "all_trees_probability", "split_at_trunks", "trunk_feet",
+           "snap_feet", "FEET_METHODS"]
+
+FEET_METHODS = ("rules", "learned", "both")
+"""Where ``find_tree_instances`` takes the trunks' feet from: the mask's rules (:func:`trunk_feet`), the
+learned foot detector's peaks snapped to the mask (:func:`snap_feet`), or both (a foot found by either)."""
 
 NARROW = 0.12
 """A trunk's rows are at most this share of its cluster's height."""
@@ -291,7 +302,8 @@ def _instance(mask: np.ndarray, foot) -> TreeInstance:
 
 
 def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 0.12, min_area: float = 0.004,
-                        focus_ratio: float = 0.35, ground: bool = False) -> list[TreeInstance]:
+                        focus_ratio: float = 0.35, ground: bool = False, feet: str = "rules",
+                        feet_weights=None, feet_threshold: float = 0.4) -> list[TreeInstance]:
     """Every tree of an RGB photo as its own mask with the pixel of its foot, left to right.
 
     Parameters
@@ -309,6 +321,15 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
     ground : bool
         Cut what the mask holds below the photo's ground line but for the trunks' feet
         (:func:`~treeform.segment.learned.stand_on_ground`).
+    feet : {'rules', 'learned', 'both'}
+        Where each cluster's trunks' feet come from (:data:`FEET_METHODS`): the mask's rules
+        (:func:`trunk_feet`), the learned foot detector
+        (:class:`~treeform.learn.infer.FeetDetector`, its peaks snapped to the mask by
+        :func:`snap_feet`; a cluster without a learned foot falls back to the rules), or both.
+    feet_weights : path, optional
+        Foot-detector ONNX weights (default: the shipped ``feet.onnx``).
+    feet_threshold : float
+        Lowest heatmap peak taken as a foot.
 
     Returns
     -------
@@ -317,7 +338,9 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
     Raises
     ------
     InputError
-        ``image`` is not an (H, W, 3) uint8 array of at least 8 x 8 pixels.
+        ``image`` is not an (H, W, 3) uint8 array of at least 8 x 8 pixels, or ``feet`` is unknown.
+    ModelError
+        The foot detector's weights are missing or unreadable (with ``feet`` other than 'rules').
     NoTreeFoundError
         No instance is left.
     """
@@ -331,8 +354,17 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
         raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got shape {img.shape} {img.dtype}")
     if min(img.shape[:2]) < 8:
         raise InputError(f"image: expected at least 8 x 8 pixels, got {img.shape[1]} x {img.shape[0]}")
+    if feet not in FEET_METHODS:
+        raise InputError(f"feet: expected one of {', '.join(FEET_METHODS)}, got {feet!r}")
+    if not 0.0 < float(feet_threshold) < 1.0:
+        raise InputError(f"feet_threshold: expected a probability in (0, 1), got {feet_threshold!r}")
     H, W = img.shape[:2]
     seg_net = Segmenter(weights)
+    peaks = None
+    if feet != "rules":
+        from treeform.learn.infer import FeetDetector
+
+        peaks = FeetDetector(feet_weights).detect(img, threshold=feet_threshold)
     from treeform.segment.classical import ground_line
 
     p_any, p_wood = all_trees_probability(img, seg_net)
@@ -353,12 +385,20 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
     near = cv2.dilate(tree.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
     clusters, n = ndi.label(near, structure=np.ones((3, 3)))
     clusters = np.where(tree, clusters, 0)
+    learned = snap_feet(tree, peaks) if peaks is not None else []
     found = []
     for k in range(1, n + 1):
         cl = clusters == k
         if cl.sum() < min_area * H * W:
             continue
-        trunks = trunk_feet(cl, wood, ground=g)
+        mine = [t for t in learned if (clusters[t[0]] == k).any()]
+        if feet == "learned" and mine:
+            trunks = [(m & cl, f) for m, f, _ in mine]
+        else:
+            trunks = trunk_feet(cl, wood, ground=g)
+            if feet == "both" and mine:
+                trunks = union_feet(trunks, [(m & cl, f, sc) for m, f, sc in mine], max(2.0, 0.012 * W),
+                                     max(2.0, 0.02 * H))
         if len(trunks) >= 2:
             parts = split_at_trunks(cl, trunks)
             found += [(part, foot) for part, (_, foot) in zip(parts, trunks) if part.any()]

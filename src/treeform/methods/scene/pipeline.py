@@ -119,8 +119,8 @@ def _scene_render(placement, meshes: list, size: tuple) -> np.ndarray:
 
 def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope", tree_height: float | None = None,
                     camera_height: float = 1.6, fov_y: float = 40.0, max_size: int = 1280, tree_max_size: int = 640,
-                    seed: int = 0,
-                    weights=None, progress: ProgressCallback | None = None, **method_options) -> SceneReconstruction:
+                    seed: int = 0, weights=None, feet: str = "rules", progress: ProgressCallback | None = None,
+                    **method_options) -> SceneReconstruction:
     """Find every tree of a photo, reconstruct each, and place them together.
 
     Parameters
@@ -148,6 +148,9 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
         Tree ``k`` (from 0) is reconstructed with seed ``seed + k``.
     weights : path, optional
         Segmentation weights (default: the shipped ones).
+    feet : {'rules', 'learned', 'both'}
+        Where each tree's trunk foot comes from (:func:`~treeform.segment.instances.find_tree_instances`):
+        the mask's rules, the learned foot detector, or both.
     progress : callable, optional
         ``progress(stage, event, seconds)`` for :data:`SCENE_STAGES`.
     **method_options
@@ -184,7 +187,7 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
         ph = fit_photo(as_photo(photo, max_size), max_size)
         image = ph.image
     with timer.stage("instances"):
-        instances = find_tree_instances(image, weights=weights)
+        instances = find_tree_instances(image, weights=weights, feet=feet)
     with timer.stage("place"):
         placement = place_on_ground([t.base for t in instances], [t.top for t in instances], image.shape[1],
                                     image.shape[0], fov_y=fov_y, camera_height=camera_height,
@@ -222,6 +225,7 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
             right = _scene_render(placement, meshes, size)
             preview = np.concatenate([left, np.full((size[1], 8, 3), 255, np.uint8), right], 1)
         metrics = _scene_json(ph, instances, placement, trees, failures, method, tree_height, fov_y)
+        metrics["feet"] = feet
         result = SceneReconstruction(image, instances, placement, trees, failures, preview, metrics)
         if staged is not None:
             with timer.stage("export"):
