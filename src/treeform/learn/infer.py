@@ -146,6 +146,45 @@ def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarra
     return keep[lab]
 
 
+def network_input(image, side: int, multiple: int, border: int) -> tuple:
+    """An RGB photo as an image network's input: long side ``side``, padded to a multiple.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    side : int
+        Long side of the scaled photo in pixels.
+    multiple : int
+        The network's stride: the scaled photo is padded (bottom, right) to a multiple of it.
+    border : int
+        OpenCV border mode of the padding.
+
+    Returns
+    -------
+    x : ndarray, shape (1, 3, h', w'), float32 in [0, 1]
+    (h, w) : the scaled photo's size inside ``x``
+    (H, W) : the photo's size
+
+    Raises
+    ------
+    InputError
+        ``image`` is not an (H, W, 3) uint8 array.
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
+    H, W = img.shape[:2]
+    s = side / max(H, W)
+    h, w = max(multiple, int(round(H * s))), max(multiple, int(round(W * s)))
+    small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+    ph, pw = (-h) % multiple, (-w) % multiple
+    if ph or pw:
+        small = cv2.copyMakeBorder(small, 0, ph, 0, pw, border)
+    return small.astype(np.float32).transpose(2, 0, 1)[None] / 255.0, (h, w), (H, W)
+
+
 class Segmenter:
     """The learned segmenter (background / foliage / wood) on onnxruntime.
 
@@ -167,17 +206,7 @@ class Segmenter:
         """(H, W, 3) float32 class probabilities of an (H, W, 3) uint8 RGB image, at its size."""
         import cv2
 
-        img = np.asarray(image)
-        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-            raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
-        H, W = img.shape[:2]
-        s = self.side / max(H, W)
-        h, w = max(8, int(round(H * s))), max(8, int(round(W * s)))
-        small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
-        ph, pw = (-h) % 8, (-w) % 8
-        if ph or pw:
-            small = cv2.copyMakeBorder(small, 0, ph, 0, pw, cv2.BORDER_REFLECT_101)
-        x = small.astype(np.float32).transpose(2, 0, 1)[None] / 255.0
+        x, (h, w), (H, W) = network_input(image, self.side, 8, cv2.BORDER_REFLECT_101)
         logits = self.session.run(None, {"image": x})[0][0, :, :h, :w]
         z = logits - logits.max(0, keepdims=True)
         p = np.exp(z)
@@ -226,17 +255,7 @@ class FeetDetector:
 
         from treeform.learn.feet import STRIDE
 
-        img = np.asarray(image)
-        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-            raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
-        H, W = img.shape[:2]
-        s = self.side / max(H, W)
-        h, w = max(16, int(round(H * s))), max(16, int(round(W * s)))
-        small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
-        ph, pw = (-h) % 16, (-w) % 16
-        if ph or pw:
-            small = cv2.copyMakeBorder(small, 0, ph, 0, pw, cv2.BORDER_REPLICATE)
-        x = small.astype(np.float32).transpose(2, 0, 1)[None] / 255.0
+        x, (h, w), (H, W) = network_input(image, self.side, 16, cv2.BORDER_REPLICATE)
         out = self.session.run(None, {"image": x})[0][0].astype(np.float64)
         hh, ww = -(-h // STRIDE), -(-w // STRIDE)
         prob = 1.0 / (1.0 + np.exp(-out[0, :hh, :ww]))
