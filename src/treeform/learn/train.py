@@ -258,6 +258,22 @@ class _Rounds:
             self._pool = None
 
 
+def _open_run(cfg, out) -> tuple[Path, object]:
+    """A training run's folder (checked writable, made) and torch, its CPU threads set from ``cfg.threads``.
+
+    Called after the settings are checked (their ``__post_init__``), so a bad option is one line
+    before torch is imported or anything is written.
+    """
+    from treeform.io.outputs import check_out_dir
+
+    out = check_out_dir(out)
+    torch = _torch()
+    out.mkdir(parents=True, exist_ok=True)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    return out, torch
+
+
 def _device(torch, name: str):
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -349,16 +365,10 @@ def train_seg(data, out, *, test_data=None, cutouts=None, photos=None, config: S
     dict
         The test metrics (also in ``out/metrics.json``).
     """
-    from treeform.io.outputs import check_out_dir
-
     cfg = SegTrainConfig.from_dict({**(asdict(config) if config else {}), **options})  # checked first
-    out = check_out_dir(out)
-    torch = _torch()
+    out, torch = _open_run(cfg, out)
     from treeform.learn.nets.segnet import SegNet
 
-    out.mkdir(parents=True, exist_ok=True)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
     make_stream = functools.partial(_scene_stream, data, cutouts, photos, size=cfg.size, seed=cfg.seed,
                                     cutout_fraction=cfg.cutout_fraction, negatives=cfg.negatives,
                                     photo_fraction=cfg.photo_fraction, photo_tree_fraction=cfg.photo_tree_fraction,

@@ -176,17 +176,12 @@ def train_feet(cutouts, out, *, photos=None, renders=None, config: FeetTrainConf
     dict
         The test metrics (also in ``out/metrics.json``).
     """
-    from treeform.io.outputs import check_out_dir
-    from treeform.learn.train import _Rounds, _device, _init_from_onnx, _lr_at, _resume, _save_atomic, _torch
+    from treeform.learn.train import _Rounds, _device, _init_from_onnx, _lr_at, _open_run, _resume, _save_atomic
 
     cfg = FeetTrainConfig.from_dict({**(asdict(config) if config else {}), **options})  # checked first
-    out = check_out_dir(out)
-    torch = _torch()
+    out, torch = _open_run(cfg, out)
     from treeform.learn.nets.feetnet import FeetNet
 
-    out.mkdir(parents=True, exist_ok=True)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
     size = (cfg.width, cfg.height)
     make_stream = functools.partial(_feet_stream, cutouts, photos, renders, size=size, seed=cfg.seed, empty=cfg.empty,
                                     render_fraction=cfg.render_fraction)

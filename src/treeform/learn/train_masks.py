@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from treeform._shared.errors import InputError
-from treeform.learn.train import _lr_at, _save_atomic, _torch
+from treeform.learn.train import _lr_at, _open_run, _save_atomic, _torch
 
 __all__ = ["MaskTrainConfig", "mask_arrays", "train_masknet"]
 
@@ -142,19 +142,13 @@ def train_masknet(kind: str, data, out, *, test_data=None, seg_weights=None, con
     dict
         Test metrics (also ``out/metrics.json``).
     """
-    from treeform.io.outputs import check_out_dir
-
     if kind not in ("species", "rbv"):
         raise InputError(f"kind: expected 'species' or 'rbv', got {kind!r}")
     cfg = MaskTrainConfig.from_dict({**(asdict(config) if config else {}), **options})  # checked first
-    out = check_out_dir(out)
-    torch = _torch()
+    out, torch = _open_run(cfg, out)
     from treeform.learn.export import export_onnx
     from treeform.learn.nets.masknets import RBVNet, SpeciesNet, split_levels
 
-    out.mkdir(parents=True, exist_ok=True)
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
     cache = out / "arrays.npz"
     if cache.exists():
         z = np.load(cache, allow_pickle=False)
