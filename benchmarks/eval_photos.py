@@ -30,7 +30,16 @@ def main():
     ap.add_argument("--segmenter", default=None, help="classical | learned (default: the method's)")
     ap.add_argument("--method", default="envelope", help="a single-photo method of the registry")
     ap.add_argument("--candidates", type=int, default=None, help="abs: models tested per photo")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a config option of the method (VALUE as JSON, else a string), e.g. --set carve=false")
     args = ap.parse_args()
+    options = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        try:
+            options[key] = json.loads(value)
+        except json.JSONDecodeError:
+            options[key] = value
     module, func = METHODS[args.method][2].split(":")
     reconstruct = getattr(importlib.import_module(module), func)
     out = Path(args.out)
@@ -44,6 +53,7 @@ def main():
             opts = {"segmenter": args.segmenter} if args.segmenter else {}
             if args.candidates is not None:
                 opts["candidates"] = args.candidates
+            opts.update(options)
             res = reconstruct(PHOTOS / name, out=out / stem, seed=args.seed, **opts)
         except TreeformError as exc:
             rows[stem] = {"error": str(exc)}
@@ -63,7 +73,7 @@ def main():
     ok = [r for r in rows.values() if "error" not in r]
     errs = [r["reprojection_error"] for r in ok]
     dws = [r["depth_width_ratio"] for r in ok]
-    summary = {"method": args.method, "rating": args.rating, "n": len(rows), "failed": len(rows) - len(ok),
+    summary = {"method": args.method, "options": options, "rating": args.rating, "n": len(rows), "failed": len(rows) - len(ok),
                "median_total_seconds": statistics.median(r["total_seconds"] for r in ok) if ok else None,
                "median_reprojection_error": statistics.median(errs) if errs else None,
                "worst_reprojection_error": max(errs) if errs else None,

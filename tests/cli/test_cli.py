@@ -138,9 +138,10 @@ def test_leaf_texture_option(tmp_path):
     proc = cli("reconstruct", SAMPLE, "--out", out, "--leaves", "1000", "--lod", "low", "--leaf-texture", "procedural")
     assert proc.returncode == 0, proc.stderr
     assert '"leaf_texture": "procedural"' in (out / "config.json").read_text()
-    bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "l", "--method", "learned", "--leaf-texture", "photo")
+    bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "l", "--method", "learned", "--leaf-texture", "photo",
+              "--depth-ratio", "0.8")
     assert_clean_failure(bad, tmp_path / "l")
-    assert "--leaf-texture works with --method envelope" in bad.stderr
+    assert "--depth-ratio works with --method envelope" in bad.stderr  # --leaf-texture is learned's too
 
 
 def test_envelope_options_of_the_paper(tmp_path):

@@ -71,10 +71,12 @@ def test_species_prints_top3_and_json():
 
 def test_reconstruct_learned_with_species_override(tmp_path):
     out = tmp_path / "t"
-    proc = cli("reconstruct", SAMPLE, "--method", "learned", "--species", "maple", "--lod", "low", "-o", out)
+    proc = cli("reconstruct", SAMPLE, "--method", "learned", "--species", "maple", "--lod", "low",
+               "--leaf-texture", "procedural", "-o", out)
     assert proc.returncode == 0, proc.stderr
     m = json.loads((out / "metrics.json").read_text())
     assert m["species"] == "maple" and (out / "tree.glb").stat().st_size > 10_000
+    assert json.loads((out / "config.json").read_text())["config"]["leaf_texture"] == "procedural"
     bad = cli("reconstruct", SAMPLE, "--method", "learned", "--species", "palm", "-o", tmp_path / "u")
     assert_clean_failure(bad, tmp_path / "u")
 

@@ -105,3 +105,21 @@ def test_bad_inputs_are_one_line_errors():
         photo_leaf_atlas(_cards(3), CAM, img, alpha, shade=[2.0, 1.0, 1.0])
     atlas, f = photo_leaf_atlas(Foliage.empty(), CAM, img, alpha)
     assert len(f) == 0 and atlas.shape[2] == 4
+
+
+def test_camera_sees_the_front_of_a_crown_and_shades_its_back():
+    from treeform.crown.photo_leaves import camera_sees
+    from treeform.structures import Camera, Foliage
+
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(3000, 3))
+    p = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(0.2, 1.0, (3000, 1)) ** (1 / 3) * 3.0
+    n = len(p)
+    f = Foliage(p, np.tile([0, 0, 1.0], (n, 1)), np.tile([0, 1, 0.0], (n, 1)), np.full(n, 0.3), np.ones((n, 3)))
+    cam = Camera(200, 200, 30.0, (0, 0, 20.0), (0, 0, 0), (0, 1, 0))
+    vis, shade = camera_sees(f, cam, np.ones((200, 200), bool))
+    z = p[:, 2]
+    assert vis[z > 2.0].mean() > 0.9 and vis[z < -1.0].mean() < 0.05  # the near side shows, the far side not
+    assert np.all(shade[vis] == 1.0) and shade[z < -2.0].mean() < shade[(z > 0) & ~vis].mean() <= 1.0
+    vis_none, _ = camera_sees(f, cam, np.zeros((200, 200), bool))
+    assert not vis_none.any()  # off the tree mask nothing shows

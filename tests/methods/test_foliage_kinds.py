@@ -86,7 +86,7 @@ def test_conical_reconstruct_gets_needles(tmp_path):
 def test_learned_route_passes_foliage_and_texture_size_to_growth():
     from treeform.methods.learned.pipeline import reconstruct
 
-    res = reconstruct(SAMPLE, species="pine", lod="low", max_size=320, texture_size=256)
+    res = reconstruct(SAMPLE, species="pine", lod="low", max_size=320, texture_size=256, leaf_texture="procedural")
     parts = {p.name: p for p in res.mesh.parts}
     np.testing.assert_array_equal(parts["leaves"].material.texture, leaf_texture(128, seed=0, kind="needles"))
     assert parts["bark"].material.texture.shape == (256, 256, 4)

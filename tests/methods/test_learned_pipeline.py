@@ -42,7 +42,10 @@ def test_outputs_exist_and_agree(run):
 def test_tree_matches_the_photo_and_the_predicted_volume(run):
     res, _ = run
     m = res.metrics
-    assert m["reprojection_error"] < 0.6 and m["iou"] > 0.35
+    # carved to the silhouette's cone and wearing the photo's crown: 10.3 % / 0.90 / SSIM 0.65 on
+    # 2026-11-26 (as the paper grows it, without either: 35 % / 0.73 / 0.10)
+    assert m["reprojection_error"] < 0.2 and m["iou"] > 0.8 and m["front_ssim"] > 0.4
+    assert 0.6 < m["depth_width_ratio"] < 1.6  # still a 3D crown, not a card cut-out
     # the tree stands in its RBV: almost every node inside the (slightly grown) volume
     sk = res.skeleton
     h = res.rbv.physical_height
@@ -66,3 +69,21 @@ def test_bad_species_and_treeless_photo(tmp_path):
     with pytest.raises(NoTreeFoundError):
         reconstruct(noise, out=tmp_path / "x", **FAST)
     assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())
+
+
+def test_carving_keeps_the_tree_inside_its_silhouette(run):
+    """Every leaf card projects onto the tree mask grown by a card; the trunk is never cut."""
+    import scipy.ndimage as ndi
+
+    from treeform.crown.sampling import visual_hull_contains
+
+    res, _ = run
+    f, sk = res.foliage, res.skeleton
+    mpp = res.metrics["metres_per_pixel"]
+    half = int(round(np.median(f.size) / mpp)) + 2
+    grown = ndi.binary_dilation(ndi.binary_fill_holes(res.segmentation.tree_mask), iterations=half)
+    assert visual_hull_contains(res.camera, grown, f.positions).all()
+    assert (f.node >= 0).all() and f.node.max() < sk.n_nodes  # cards still name their (renumbered) nodes
+    loose = reconstruct(SAMPLE, seed=0, carve=False, leaf_texture="procedural", **FAST)
+    assert loose.metrics["reprojection_error"] > res.metrics["reprojection_error"] + 0.1
+    assert (sk.order == 0).sum() == (loose.skeleton.order == 0).sum()  # the same trunk, uncut

@@ -157,8 +157,9 @@ def reconstruct(
                                              "envelope needles for --crown conical, learned the species'."),
     texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
     leaf_texture: Optional[LeafTexture] = typer.Option(
-        None, "--leaf-texture", help="envelope, abs: leaf cards wear the photo's own crown ('photo', default) or a "
-                                     "drawn cluster (abs: leaf) tinted with its colours ('procedural')."),
+        None, "--leaf-texture", help="envelope, abs, learned: leaf cards wear the photo's own crown ('photo', "
+                                     "default) or a drawn cluster (abs: leaf; learned: the species' leaves, "
+                                     "envelope and abs tinted with the photo's colours) ('procedural')."),
     profile: Optional[Profile] = typer.Option(
         None, "--profile", help="envelope: crown side 'rounded' (default) or 'thin-plate' (paper's depth, deepest "
                                 "where the front is widest)."),
@@ -222,6 +223,7 @@ def reconstruct(
                   segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, stages=STAGES,
                   texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
     elif method is Method.learned:
+        given = [g for g in given if g != "--leaf-texture"]
         if given:
             typer.echo(f"error: {', '.join(given)} work{'s' if len(given) == 1 else ''} with --method envelope",
                        err=True)
@@ -231,7 +233,7 @@ def reconstruct(
 
         kw = dict(species=species, leaves=leaves, lod=lod.value, tree_height=height,
                   segmenter=(segmenter or SegmenterName.learned).value, stages=STAGES, foliage=foliage.value,
-                  texture_size=texture_size)
+                  texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value)
     else:
         from treeform.methods.envelope.pipeline import reconstruct as api
 

@@ -21,7 +21,7 @@ from treeform._shared.rng import as_rng
 from treeform.structures.camera import Camera
 from treeform.structures.foliage import Foliage
 
-__all__ = ["photo_leaf_atlas", "face_camera"]
+__all__ = ["photo_leaf_atlas", "face_camera", "camera_sees"]
 
 _SHAPES = 4  # distinct cluster outlines; each also turned by 0/90/180/270 degrees and mirrored
 
@@ -61,6 +61,66 @@ def face_camera(foliage: Foliage, camera: Camera, which, rng, scatter: float = 0
     turned /= np.maximum(np.linalg.norm(turned, axis=1, keepdims=True), 1e-12)
     normals = np.where(np.asarray(which, bool)[:, None], turned, foliage.normals)
     return Foliage(foliage.positions, normals, foliage.up, foliage.size, foliage.color, foliage.node)
+
+
+def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Which cards the photo's camera sees, by a depth buffer of the cards, and a shade for the others.
+
+    The image is cut into cells of about a card's size; a card whose centre projects onto
+    ``mask`` is seen when it lies within ``band`` card sizes behind the nearest card of its
+    cell. A hidden card takes a shade from 1 (at the front of its cell) to 0.55 (half the
+    crown's depth or more behind it), like the other routes' cards deep in the crown.
+
+    Parameters
+    ----------
+    foliage : Foliage
+        M cards in the camera's world.
+    camera : Camera
+    mask : ndarray, shape (H, W), bool
+        The tree in the photo (the camera's image).
+    band : float
+        Depth, in card sizes, behind the frontmost card that still shows.
+
+    Returns
+    -------
+    visible : ndarray, shape (M,), bool
+    shade : ndarray, shape (M,), float in [0.55, 1] (1 where visible)
+
+    Examples
+    --------
+    >>> cam = Camera(64, 64, 40.0, (0, 0, 10.0), (0, 0, 0), (0, 1, 0))
+    >>> f = Foliage([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 0.9]], [[0, 0, 1]] * 3, [[0, 1, 0]] * 3, [0.2] * 3,
+    ...             [[1, 1, 1]] * 3)
+    >>> vis, shade = camera_sees(f, cam, np.ones((64, 64), bool))
+    >>> vis.tolist(), bool(shade[1] < 0.7)
+    ([True, False, True], True)
+    """
+    mask = np.asarray(mask, bool)
+    if mask.shape != (camera.height, camera.width):
+        raise InputError(f"mask: expected shape {(camera.height, camera.width)}, got {mask.shape}")
+    m = len(foliage)
+    if m == 0:
+        return np.zeros(0, bool), np.ones(0)
+    uvz = camera.project(foliage.positions)
+    depth = uvz[:, 2]
+    px = foliage.size * camera.focal / np.maximum(depth, 1e-9)  # each card's size in pixels
+    cell = max(float(np.median(px)), 1.0)
+    h, w = mask.shape
+    u = np.clip(np.floor(uvz[:, 0]).astype(np.int64), 0, w - 1)
+    v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, h - 1)
+    inside = (uvz[:, 0] >= 0) & (uvz[:, 0] < w) & (uvz[:, 1] >= 0) & (uvz[:, 1] < h) & (depth > 0)
+    inside &= mask[v, u]
+    cu, cv = (u / cell).astype(np.int64), (v / cell).astype(np.int64)
+    key = cv * (int(w / cell) + 2) + cu
+    _, k = np.unique(key, return_inverse=True)
+    front = np.full(k.max() + 1, np.inf)
+    np.minimum.at(front, k[inside], depth[inside])
+    behind = depth - front[k]
+    visible = inside & (behind <= band * foliage.size)
+    spread = float(np.percentile(depth, 95) - np.percentile(depth, 5)) if m > 1 else 1.0
+    far = np.clip(np.where(np.isfinite(behind), behind, spread) / max(0.5 * spread, 1e-9), 0.0, 1.0)
+    shade = np.where(visible, 1.0, 1.0 - 0.45 * far)
+    return visible, shade
 
 
 def _finish_tiles(sample, shape_alpha, detail_lum, pick, dark, detail):

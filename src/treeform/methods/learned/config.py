@@ -124,6 +124,16 @@ class LearnedConfig:
     """Tree height in metres; None: the predicted species' reference height (its RBV scale, §4.4)."""
     rbv_level: int = 4
     """Level of the predicted RBV the crown grows in (4 = 8 layers x 8 sectors)."""
+    carve: bool = True
+    """Drop the leaf cards whose centre projects outside the tree mask (grown by half a card):
+    the tree lies inside the cone of its silhouette."""
+    leaf_texture: str = "photo"
+    """'photo': leaf cards textured with the photo's crown, those the camera sees facing it
+    (:func:`treeform.crown.photo_leaf_atlas`); 'procedural': the species' drawn leaves."""
+    fit_silhouette: bool = False
+    """Rescale each layer of the predicted RBV so the photo's camera sees it span the tree mask's
+    left and right extent (:func:`treeform.crown.rbv_fit.fit_rbv_to_silhouette`); False: the
+    network's RBV as predicted (seed 003 as published)."""
     max_size: int = 640
     """Long side the photo is reduced to before segmentation."""
     fov_y: float = 40.0
@@ -149,6 +159,10 @@ class LearnedConfig:
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         if self.tree_height is not None:
             check_height(self.tree_height)
+        for name in ("fit_silhouette", "carve"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"{name}: expected true or false, got {getattr(self, name)!r}")
+        check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
         if self.rbv_level not in (1, 2, 3, 4, 5):
             raise InputError(f"rbv_level: expected 1..5, got {self.rbv_level!r}")
         _check_ints(self, (("max_size", 32, 8192), ("render_size", 32, 4096)))

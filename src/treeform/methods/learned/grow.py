@@ -142,7 +142,8 @@ def _read_branch_mask(path) -> np.ndarray:
 
 def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: ProgressCallback | None = None,
               config: GrowConfig | None = None, rbv_volume=None, branch_mask: np.ndarray | None = None,
-              mask_scale: float | None = None, mask_base=None, previews: bool = True, **overrides) -> GrowResult:
+              mask_scale: float | None = None, mask_base=None, previews: bool = True, dress=None,
+              **overrides) -> GrowResult:
     """Grow a leafy, textured 3D tree of a species (seed 003 §4.3, Appendix Tables 2–3).
 
     Parameters
@@ -168,6 +169,10 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
     previews : bool
         Render the front / side / top preview strip (callers that render their own views
         turn it off).
+    dress : callable, optional
+        ``dress(skeleton, foliage, bark_texture, leaf_texture) -> (skeleton, foliage,
+        bark_texture, leaf_texture)``, applied before the mesh is built: a photo route cuts
+        the branches and cards outside the photo's silhouette and textures the rest with the photo.
     **overrides
         :class:`GrowConfig` fields (``leaves=5000, lod="low", leaves_per_twig=2, ...``) or
         growth parameters (``age=12, growth_rate=2.5, ...``; see
@@ -245,9 +250,12 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
         sized = foliage if factor == 1.0 else replace(foliage, size=foliage.size / factor)
         bark_tex, leaf_tex = tree_textures(skeleton, sized, foliage_kind=kind, texture_size=cfg.texture_size,
                                            seed=cfg.seed)
+        bark_normal = bark_normals(bark_tex, seed=cfg.seed)
+        if dress is not None:
+            skeleton, foliage, bark_tex, leaf_tex = dress(skeleton, foliage, bark_tex, leaf_tex)
+            skeleton.meta["n_leaves"] = len(foliage)
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], radial_segments=cfg.radial_segments,
-                         leaf_texture=leaf_tex, bark_texture=bark_tex,
-                         bark_normal=bark_normals(bark_tex, seed=cfg.seed), seed=cfg.seed)
+                         leaf_texture=leaf_tex, bark_texture=bark_tex, bark_normal=bark_normal, seed=cfg.seed)
     renders, preview = {}, None
     if previews:
         with timer.stage("render"):

@@ -1,8 +1,10 @@
 """Single photo -> 3D tree by learned perception and bi-modal growth (seed 003 §5, Fig. 2).
 
 segmentation M (network) -> species U (species CNN on M) -> RBV R (cascaded CNN on M) ->
-bi-modal growth of U's parameters inside R, its scaffold on M's wood -> leaves -> mesh ->
-front / side / top renders and the reprojection error against M -> the usual tree outputs.
+bi-modal growth of U's parameters inside R, its scaffold on M's wood -> leaves -> the tree
+carved to the cone of M and its cards textured with the photo's crown (:func:`dress_from_photo`,
+beyond the paper) -> mesh -> front / side / top renders and the reprojection error against M
+-> the usual tree outputs.
 
 Each arrow is one call into a domain folder; the networks run on onnxruntime
 (:mod:`treeform.learn.infer`), nothing here imports torch.
@@ -21,7 +23,7 @@ from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.methods.learned.config import LearnedConfig
 
-__all__ = ["STAGES", "LearnedReconstruction", "reconstruct"]
+__all__ = ["STAGES", "LearnedReconstruction", "reconstruct", "dress_from_photo"]
 
 STAGES = ("load", "segment", "species", "rbv", "grow", "render", "export")
 """Stage names reported through ``progress(stage, event, seconds)``, in order (``metrics["timings"]``
@@ -46,6 +48,63 @@ class LearnedReconstruction:
     renders: dict = field(default_factory=dict)
     preview: np.ndarray | None = None
     files: dict = field(default_factory=dict)
+
+
+def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: LearnedConfig, camera, image, seg,
+                     layout, mpp: float):
+    """The grown tree's leaves and bark made to agree with the photo (``grow_tree``'s ``dress``).
+
+    - Branches and cards whose centre projects outside the tree mask (grown by half a card) go:
+      the real tree lies inside the cone of its silhouette (``cfg.carve``; the trunk stays).
+    - With ``cfg.leaf_texture == "photo"``, the cards the camera sees turn to face it and every
+      card shows its patch of the photo's crown (:func:`treeform.crown.photo_leaf_atlas`, as
+      the envelope and abs routes do); the bark takes the photo's wood colour.
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.crown.sampling import visual_hull_contains
+
+    tree = seg.tree_mask
+    if cfg.carve:
+        from dataclasses import replace
+
+        half = max(1, int(round(0.5 * float(np.median(foliage.size)) / mpp))) if len(foliage) else 1
+        # the silhouette's outline, not its gaps: a card is larger than most of them
+        disk = np.hypot(*np.mgrid[-half:half + 1, -half:half + 1]) <= half
+        grown = ndi.binary_fill_holes(ndi.binary_dilation(ndi.binary_closing(tree, disk, border_value=0), disk))
+        # a branch ends where it leaves the silhouette for good: a node stays while it or a node
+        # above it on its branches is inside (a limb crossing a gap of the mask is kept whole);
+        # the trunk stays, as the mask may miss part of it
+        inside = visual_hull_contains(camera, grown, skeleton.positions)
+        for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
+            if inside[i]:
+                inside[skeleton.parent[i]] = True
+        skeleton, new = skeleton.prune(inside | (skeleton.order == 0))
+        if len(foliage):
+            old = foliage.node
+            node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
+            kept = ((old < 0) | (node >= 0)) & visual_hull_contains(camera, grown, foliage.positions)
+            foliage = replace(foliage.subset(kept), node=node[kept])
+    if seg.wood_mask.sum() > 20:
+        from treeform.geometry.textures import tint_texture
+
+        bark_texture = tint_texture(bark_texture, np.median(image[seg.wood_mask], axis=0))
+    if cfg.leaf_texture == "photo" and len(foliage):
+        from treeform.crown.layout import trunk_pixels
+        from treeform.crown.photo_leaves import camera_sees, face_camera, photo_leaf_atlas
+        from treeform.geometry.textures import foliage_texture_kind
+        from treeform.growth.species import load_species_appearance
+        from treeform.segment.matting import sky_gaps
+
+        visible, shade = camera_sees(foliage, camera, tree)
+        foliage = face_camera(foliage, camera, visible, cfg.seed).with_colors(np.ones((len(foliage), 3)))
+        leafy = tree & ~trunk_pixels(seg, layout)
+        alpha = ndi.gaussian_filter((leafy & ~sky_gaps(image, seg, ratio=3.0)) * seg.alpha, 0.6)
+        look = load_species_appearance(skeleton.meta.get("species", "oak"))
+        kind = look.leaf_type if cfg.foliage == "auto" else cfg.foliage
+        leaf_texture, foliage = photo_leaf_atlas(foliage, camera, image, alpha, visible=visible, shade=shade,
+                                                 seed=cfg.seed, kind=foliage_texture_kind(kind))
+    return skeleton, foliage, bark_texture, leaf_texture
 
 
 def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = None,
@@ -100,6 +159,10 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         norm = np.maximum(levels[cfg.rbv_level - 1], 1e-3)
         rbv = RadialBoundingVolume(norm * tree_h, tree_h)
         cam, mpp = photo_camera(width_px, height_px, layout, tree_h, cfg.fov_y)
+        if cfg.fit_silhouette:  # the photo fixes each layer's left and right extent; the network the rest
+            from treeform.crown.rbv_fit import fit_rbv_to_silhouette
+
+            rbv = fit_rbv_to_silhouette(rbv, cam, seg.tree_mask)
     with timer.stage("grow"):
         from treeform.methods.learned.grow import grow_tree
 
@@ -107,7 +170,9 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         branch_mask = wood if wood.sum() >= 2 else None
         grown = grow_tree(species, seed=cfg.seed, rbv_volume=rbv, branch_mask=branch_mask, mask_scale=mpp,
                           mask_base=layout.base if branch_mask is not None else None, previews=False,
-                          leaves=cfg.leaves, lod=cfg.lod, foliage=cfg.foliage, texture_size=cfg.texture_size)
+                          leaves=cfg.leaves, lod=cfg.lod, foliage=cfg.foliage, texture_size=cfg.texture_size,
+                          dress=lambda *a: dress_from_photo(*a, cfg=cfg, camera=cam, image=image, seg=seg,
+                                                            layout=layout, mpp=mpp))
         skeleton, foliage, mesh = grown.skeleton, grown.foliage, grown.mesh
         skeleton.meta.update({"method": "learned", "source": Path(ph.source).name if ph.source else None})
     for k in ("leaves", "mesh"):  # grow_tree timed these inside the grow stage

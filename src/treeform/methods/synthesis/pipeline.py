@@ -78,17 +78,6 @@ def _leaf_size(crown_mask: np.ndarray, mpp: float) -> float:
     return float(np.clip(r / 10.0, 0.05, 0.8))
 
 
-def _inside_mask(points: np.ndarray, camera, mask: np.ndarray) -> np.ndarray:
-    """Which 3D points project onto ``mask`` (pixels of ``camera``'s image)."""
-    uvz = camera.project(points)
-    u = np.floor(uvz[:, 0]).astype(np.int64)
-    v = np.floor(uvz[:, 1]).astype(np.int64)
-    h, w = mask.shape
-    ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
-    ok[ok] = mask[v[ok], u[ok]]
-    return ok
-
-
 def foliage_reach(sk2d, crown_mask: np.ndarray) -> list:
     """Per skeleton point, how far its foliage reaches (pixels): the farthest crown pixel whose
     nearest skeleton point it is (a Voronoi partition of the crown among all branch points),
@@ -371,8 +360,10 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                               "source": Path(ph.source).name if ph.source else None, "n_leaves": len(foliage)})
         photo_leaves = cfg.leaf_texture == "photo" and len(foliage) > 0
         if len(foliage):
+            from treeform.crown.sampling import visual_hull_contains
+
             uvz = cam.project(foliage.positions)
-            inside = _inside_mask(foliage.positions, cam, tree_mask)
+            inside = visual_hull_contains(cam, tree_mask, foliage.positions)
             visible, shade = _front_cards(foliage, uvz, inside, tree_mask, mpp)
             if photo_leaves:  # the cards the camera sees face it: each shows its patch of the photo unstretched
                 from treeform.crown.photo_leaves import face_camera
