@@ -127,6 +127,9 @@ class LearnedConfig:
     carve: bool = True
     """Drop the leaf cards whose centre projects outside the tree mask (grown by half a card):
     the tree lies inside the cone of its silhouette."""
+    fill: bool = True
+    """Add leaf cards where the tree mask shows foliage and no grown card projects, inside the RBV
+    along each pixel's ray (:func:`treeform.methods.learned.pipeline.fill_silhouette`)."""
     leaf_texture: str = "photo"
     """'photo': leaf cards textured with the photo's crown, those the camera sees facing it
     (:func:`treeform.crown.photo_leaf_atlas`); 'procedural': the species' drawn leaves."""
@@ -159,7 +162,7 @@ class LearnedConfig:
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         if self.tree_height is not None:
             check_height(self.tree_height)
-        for name in ("fit_silhouette", "carve"):
+        for name in ("fit_silhouette", "carve", "fill"):
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
