@@ -3,8 +3,8 @@
 segmentation M (network) -> species U (species CNN on M) -> RBV R (cascaded CNN on M) ->
 bi-modal growth of U's parameters inside R, its scaffold on M's wood -> leaves -> the tree
 carved to the cone of M, filled out to it and its cards textured with the photo's crown
-(:func:`dress_from_photo`, beyond the paper) -> mesh -> front / side / top renders and the reprojection error against M
--> the usual tree outputs.
+(:func:`dress_from_photo`, beyond the paper) -> mesh -> front / side / top renders and the
+reprojection error against M -> the usual tree outputs.
 
 Each arrow is one call into a domain folder; the networks run on onnxruntime
 (:mod:`treeform.learn.infer`), nothing here imports torch.
