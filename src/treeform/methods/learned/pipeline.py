@@ -118,17 +118,19 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
 
     - Branches and cards whose centre projects outside the tree mask (grown by half a card) go:
       the real tree lies inside the cone of its silhouette (``cfg.carve``; the trunk stays).
-    - Where the mask shows the tree and no card projects, cards are added inside the RBV
-      (:func:`fill_silhouette`, ``cfg.fill``; needs ``rbv``).
+    - Where the mask shows leaves (not the trunk below the crown) and no card projects, cards
+      are added inside the RBV (:func:`fill_silhouette`, ``cfg.fill``; needs ``rbv``).
     - With ``cfg.leaf_texture == "photo"``, the cards the camera sees turn to face it and every
       card shows its patch of the photo's crown (:func:`treeform.crown.photo_leaf_atlas`, as
       the envelope and abs routes do); the bark takes the photo's wood colour.
     """
     import scipy.ndimage as ndi
 
+    from treeform.crown.layout import trunk_pixels
     from treeform.crown.sampling import visual_hull_contains
 
     tree = seg.tree_mask
+    leafy = tree & ~trunk_pixels(seg, layout)  # the trunk below the crown carries no leaves
     if cfg.carve:
         from dataclasses import replace
 
@@ -150,13 +152,12 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
             kept = ((old < 0) | (node >= 0)) & visual_hull_contains(camera, grown, foliage.positions)
             foliage = replace(foliage.subset(kept), node=node[kept])
     if cfg.fill and len(foliage) and rbv is not None:
-        foliage = fill_silhouette(skeleton, foliage, camera, tree, rbv, mpp=mpp, seed=cfg.seed)
+        foliage = fill_silhouette(skeleton, foliage, camera, leafy, rbv, mpp=mpp, seed=cfg.seed)
     if seg.wood_mask.sum() > 20:
         from treeform.geometry.textures import tint_texture
 
         bark_texture = tint_texture(bark_texture, np.median(image[seg.wood_mask], axis=0))
     if cfg.leaf_texture == "photo" and len(foliage):
-        from treeform.crown.layout import trunk_pixels
         from treeform.crown.photo_leaves import camera_sees, face_camera, photo_leaf_atlas
         from treeform.geometry.textures import foliage_texture_kind
         from treeform.growth.species import load_species_appearance
@@ -164,7 +165,6 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
 
         visible, shade = camera_sees(foliage, camera, tree)
         foliage = face_camera(foliage, camera, visible, cfg.seed).with_colors(np.ones((len(foliage), 3)))
-        leafy = tree & ~trunk_pixels(seg, layout)
         alpha = ndi.gaussian_filter((leafy & ~sky_gaps(image, seg, ratio=3.0)) * seg.alpha, 0.6)
         look = load_species_appearance(skeleton.meta.get("species", "oak"))
         kind = look.leaf_type if cfg.foliage == "auto" else cfg.foliage
