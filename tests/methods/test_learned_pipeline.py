@@ -90,7 +90,7 @@ def test_carving_keeps_the_tree_inside_its_silhouette(run):
 
 
 def test_filling_adds_cards_only_where_the_photo_shows_the_tree_and_none_projects(run):
-    from treeform.methods.learned.pipeline import fill_silhouette
+    from treeform.crown.sampling import fill_silhouette
     from treeform.structures import Foliage
 
     res, _ = run

@@ -203,3 +203,17 @@ def trunk_pixels(seg: Segmentation, layout: TreeLayout) -> np.ndarray:
         out = np.isin(lab, ids)
         out[: int(layout.trunk_top[1])] = False
     return out
+
+
+def row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(H,) each row's occupancy, leftmost and rightmost ``mask`` column (0 for empty rows).
+
+    >>> m = np.zeros((3, 5), bool); m[1, 1:4] = True
+    >>> [a.tolist() for a in row_extents(m)]
+    [[False, True, False], [0, 1, 0], [0, 3, 0]]
+    """
+    mask = np.asarray(mask, bool)
+    rows = mask.any(1)
+    left = np.where(rows, mask.argmax(1), 0)
+    right = np.where(rows, mask.shape[1] - 1 - mask[:, ::-1].argmax(1), 0)
+    return rows, left, right

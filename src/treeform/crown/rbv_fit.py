@@ -13,6 +13,7 @@ import numpy as np
 
 from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
+from treeform.crown.layout import row_extents
 from treeform.structures.camera import Camera
 from treeform.structures.rbv import RadialBoundingVolume
 
@@ -61,9 +62,7 @@ def silhouette_layer_extents(rbv: RadialBoundingVolume, camera: Camera, mask: np
     o = rbv.origin
     pts = np.array([[o[0], o[1] + y, o[2]] for y in edges])
     v = camera.project(pts)[:, 1]
-    rows = mask.any(1)
-    left = np.where(rows, mask.argmax(1), -1)
-    right = np.where(rows, mask.shape[1] - 1 - mask[:, ::-1].argmax(1), -1)
+    rows, left, right = row_extents(mask)
     out = np.full((rbv.n_layers, 2), np.nan)
     for i in range(rbv.n_layers):
         lo, hi = sorted((v[i], v[i + 1]))

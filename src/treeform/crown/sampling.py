@@ -299,3 +299,144 @@ def billboard_centres(rdm, nodes=None, n: int = 144, *, inner: float = 0.35, box
         cand = np.concatenate([cand, sample_rdm_shell(rdm, 4 * n - len(cand), keep=keep, seed=rng)])
     order = farthest_point_order(cand, n, first=int(np.argmax(cand[:, 1])))
     return cand[order].astype(np.float32)
+
+
+def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: int = 1):
+    """The tree cut to the cone of its silhouette: branch ends and cards outside ``mask``'s outline go.
+
+    The outline is ``mask`` closed, grown by ``margin`` pixels and with its holes filled (a
+    card is larger than most gaps of a crown). A node stays while it or a node above it on
+    its branches projects inside, so a limb crossing a gap of the mask is kept whole and a
+    branch ends where it leaves the silhouette for good; the trunk (order 0) always stays, as
+    a mask may miss part of it. Cards stay when their centre projects inside and their node
+    stays; their ``node`` indices follow the pruned skeleton.
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    foliage : Foliage
+    camera : Camera
+        The photo's camera; ``mask`` is its image.
+    mask : ndarray, shape (H, W), bool
+    margin : int
+        Pixels the outline is closed and grown by (about half a card).
+
+    Returns
+    -------
+    (TreeSkeleton, Foliage)
+
+    Examples
+    --------
+    >>> from treeform.structures import Camera, Foliage, TreeSkeleton
+    >>> cam = Camera(100, 100, 40.0, (0, 2, 10.0), (0, 2, 0), (0, 1, 0))
+    >>> sk = TreeSkeleton(np.array([[0, 0, 0], [0, 2, 0], [3, 3, 0], [0.3, 3, 0.]]), np.array([-1, 0, 1, 1]),
+    ...                   order=np.array([0, 0, 1, 1]))
+    >>> f = Foliage([[3, 3, 0], [0.3, 3, 0]], [[0, 0, 1]] * 2, [[0, 1, 0]] * 2, [0.2] * 2, [[1, 1, 1]] * 2, [2, 3])
+    >>> m = np.zeros((100, 100), bool); m[10:95, 40:60] = True  # a narrow tree: the limb at x = 3 m is outside
+    >>> sk2, f2 = carve_to_silhouette(sk, f, cam, m)
+    >>> sk2.n_nodes, f2.node.tolist()
+    (3, [2])
+    """
+    from dataclasses import replace
+
+    import scipy.ndimage as ndi
+
+    margin = max(1, int(margin))
+    disk = np.hypot(*np.mgrid[-margin:margin + 1, -margin:margin + 1]) <= margin
+    grown = ndi.binary_fill_holes(ndi.binary_dilation(ndi.binary_closing(np.asarray(mask, bool), disk,
+                                                                         border_value=0), disk))
+    inside = visual_hull_contains(camera, grown, skeleton.positions)
+    for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
+        if inside[i]:
+            inside[skeleton.parent[i]] = True
+    skeleton, new = skeleton.prune(inside | (skeleton.order == 0))
+    if len(foliage):
+        old = foliage.node
+        node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
+        kept = ((old < 0) | (node >= 0)) & visual_hull_contains(camera, grown, foliage.positions)
+        foliage = replace(foliage.subset(kept), node=node[kept])
+    return skeleton, foliage
+
+
+def fill_silhouette(skeleton, foliage, camera, mask, rbv, *, mpp: float, depth_samples: int = 24, seed=0):
+    """``foliage`` plus cards where ``mask`` shows the tree and no card projects.
+
+    The grown crown fills its RBV, not the photo's outline: where the mask has pixels more
+    than half a card from every card's centre, new cards are laid on a grid of a card's
+    size, each at a random depth along its pixel's ray where the ray runs inside the RBV (where
+    it misses it, within the mask's row revolved about the row's centre, as seed 004 §3.5
+    revolves the crown), hung on the nearest twig
+    (:func:`~treeform.growth.leaves.attach_leaves`).
+
+    Parameters
+    ----------
+    skeleton : TreeSkeleton
+    foliage : Foliage
+        The cards so far (at least one: their median size is the new cards' size).
+    camera : Camera
+        The photo's camera; ``mask`` is its image.
+    mask : ndarray, shape (H, W), bool
+        Where the photo shows leaves.
+    rbv : RadialBoundingVolume
+        The crown's volume, in the camera's world.
+    mpp : float
+        Metres per pixel on the plane through the volume's axis.
+    depth_samples : int
+        Points tried along each ray.
+    seed : int
+
+    Returns
+    -------
+    Foliage
+        ``foliage`` first, then the new cards (tinted with ``foliage``'s median colour).
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.crown.layout import row_extents
+    from treeform.growth.leaves import attach_leaves
+    from treeform.structures import Foliage
+
+    rng = np.random.default_rng([int(seed), 7])
+    size = float(np.median(foliage.size))
+    r = max(1.0, 0.5 * size / mpp)  # a card's half edge in pixels
+    h, w = mask.shape
+    uv = camera.project(foliage.positions)[:, :2]
+    centres = np.zeros(mask.shape, bool)
+    ok = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    centres[uv[ok, 1].astype(np.int64), uv[ok, 0].astype(np.int64)] = True
+    holes = mask & (ndi.distance_transform_edt(~centres) > r)
+    step = max(1, int(round(r)))
+    grid = np.zeros_like(holes)
+    oy, ox = rng.integers(0, step, 2)
+    grid[oy::step, ox::step] = True
+    vs, us = np.nonzero(holes & grid)
+    if len(us) == 0:
+        return foliage
+    # depth: points along each pixel's ray between the RBV's front and back
+    us, vs = us + rng.uniform(0, 1, len(us)), vs + rng.uniform(0, 1, len(vs))
+    reach = float(rbv.physical_radii.max())
+    cam_z = float(camera.position[2])
+    depths = cam_z - np.linspace(reach, -reach, depth_samples)  # along the view axis (the camera looks down -Z)
+    pts = camera.unproject(np.repeat(us, depth_samples), np.repeat(vs, depth_samples),
+                           np.tile(depths, len(us))).reshape(len(us), depth_samples, 3)
+    inside = rbv.contains(pts.reshape(-1, 3)).reshape(len(us), depth_samples)
+    has = inside.any(1)
+    score = np.where(inside, rng.uniform(0, 1, inside.shape), -1.0)
+    chosen = pts[np.arange(len(us)), np.argmax(score, axis=1)]
+    if not has.all():  # rays past the RBV: within the silhouette's row revolved about its centre
+        miss = np.flatnonzero(~has)
+        rows, left, right = row_extents(mask)
+        row = np.clip(vs[miss].astype(np.int64), 0, h - 1)
+        half = 0.5 * (right[row] - left[row] + 1) * mpp
+        dx = (us[miss] - 0.5 * (left[row] + right[row] + 1)) * mpp
+        zmax = np.sqrt(np.maximum(half ** 2 - dx ** 2, (0.1 * half) ** 2))
+        z = rng.uniform(-1.0, 1.0, len(miss)) * zmax
+        chosen[miss] = camera.unproject(us[miss], vs[miss], cam_z - z)
+    new = attach_leaves(skeleton, chosen, size=size, center=rbv.origin + [0, 0.6 * rbv.physical_height, 0],
+                        scatter=1.4, seed=rng)
+    if len(new) == 0:
+        return foliage
+    color = np.tile(np.median(foliage.color, axis=0), (len(new), 1))
+    return Foliage(np.concatenate([foliage.positions, new.positions]), np.concatenate([foliage.normals, new.normals]),
+                   np.concatenate([foliage.up, new.up]), np.concatenate([foliage.size, new.size]),
+                   np.concatenate([foliage.color, color]), np.concatenate([foliage.node, new.node]))

@@ -23,7 +23,7 @@ from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.methods.learned.config import LearnedConfig
 
-__all__ = ["STAGES", "LearnedReconstruction", "reconstruct", "dress_from_photo", "fill_silhouette"]
+__all__ = ["STAGES", "LearnedReconstruction", "reconstruct", "dress_from_photo"]
 
 STAGES = ("load", "segment", "species", "rbv", "grow", "render", "export")
 """Stage names reported through ``progress(stage, event, seconds)``, in order (``metrics["timings"]``
@@ -50,76 +50,16 @@ class LearnedReconstruction:
     files: dict = field(default_factory=dict)
 
 
-def fill_silhouette(skeleton, foliage, camera, mask, rbv, *, mpp: float, depth_samples: int = 24, seed=0):
-    """``foliage`` plus cards where the photo shows the tree and no card projects.
-
-    The grown crown fills its RBV, not the photo's outline: where the mask has pixels more
-    than half a card from every card's centre, new cards are laid on a grid of a card's
-    size, each at a random depth along its pixel's ray where the ray runs inside the RBV (where
-    it misses it, within the mask's row revolved about the row's centre, as seed 004 §3.5
-    revolves the crown), hung on the nearest twig.
-    """
-    import scipy.ndimage as ndi
-
-    from treeform.growth.leaves import attach_leaves
-    from treeform.structures import Foliage
-
-    rng = np.random.default_rng([int(seed), 7])
-    size = float(np.median(foliage.size))
-    r = max(1.0, 0.5 * size / mpp)  # a card's half edge in pixels
-    h, w = mask.shape
-    uv = camera.project(foliage.positions)[:, :2]
-    centres = np.zeros(mask.shape, bool)
-    ok = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-    centres[uv[ok, 1].astype(np.int64), uv[ok, 0].astype(np.int64)] = True
-    holes = mask & (ndi.distance_transform_edt(~centres) > r)
-    step = max(1, int(round(r)))
-    grid = np.zeros_like(holes)
-    oy, ox = rng.integers(0, step, 2)
-    grid[oy::step, ox::step] = True
-    vs, us = np.nonzero(holes & grid)
-    if len(us) == 0:
-        return foliage
-    # depth: points along each pixel's ray between the RBV's front and back
-    us, vs = us + rng.uniform(0, 1, len(us)), vs + rng.uniform(0, 1, len(vs))
-    reach = float(rbv.physical_radii.max())
-    cam_z = float(camera.position[2])
-    depths = cam_z - np.linspace(reach, -reach, depth_samples)  # along the view axis (the camera looks down -Z)
-    pts = camera.unproject(np.repeat(us, depth_samples), np.repeat(vs, depth_samples),
-                           np.tile(depths, len(us))).reshape(len(us), depth_samples, 3)
-    inside = rbv.contains(pts.reshape(-1, 3)).reshape(len(us), depth_samples)
-    has = inside.any(1)
-    score = np.where(inside, rng.uniform(0, 1, inside.shape), -1.0)
-    chosen = pts[np.arange(len(us)), np.argmax(score, axis=1)]
-    if not has.all():  # rays past the RBV: within the silhouette's row revolved about its centre
-        miss = np.flatnonzero(~has)
-        rows = mask.any(1)
-        left = np.where(rows, mask.argmax(1), 0)
-        right = np.where(rows, w - 1 - mask[:, ::-1].argmax(1), 0)
-        row = np.clip(vs[miss].astype(np.int64), 0, h - 1)
-        half = 0.5 * (right[row] - left[row] + 1) * mpp
-        dx = (us[miss] - 0.5 * (left[row] + right[row] + 1)) * mpp
-        zmax = np.sqrt(np.maximum(half ** 2 - dx ** 2, (0.1 * half) ** 2))
-        z = rng.uniform(-1.0, 1.0, len(miss)) * zmax
-        chosen[miss] = camera.unproject(us[miss], vs[miss], cam_z - z)
-    new = attach_leaves(skeleton, chosen, size=size, center=rbv.origin + [0, 0.6 * rbv.physical_height, 0],
-                        scatter=1.4, seed=rng)
-    if len(new) == 0:
-        return foliage
-    color = np.tile(np.median(foliage.color, axis=0), (len(new), 1))
-    return Foliage(np.concatenate([foliage.positions, new.positions]), np.concatenate([foliage.normals, new.normals]),
-                   np.concatenate([foliage.up, new.up]), np.concatenate([foliage.size, new.size]),
-                   np.concatenate([foliage.color, color]), np.concatenate([foliage.node, new.node]))
-
-
 def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: LearnedConfig, camera, image, seg,
                      layout, mpp: float, rbv=None):
     """The grown tree's leaves and bark made to agree with the photo (``grow_tree``'s ``dress``).
 
-    - Branches and cards whose centre projects outside the tree mask (grown by half a card) go:
-      the real tree lies inside the cone of its silhouette (``cfg.carve``; the trunk stays).
+    - Branches and cards whose centre projects outside the tree mask's outline (grown by half a
+      card) go: the real tree lies inside the cone of its silhouette
+      (:func:`treeform.crown.sampling.carve_to_silhouette`, ``cfg.carve``; the trunk stays).
     - Where the mask shows leaves (not the trunk below the crown) and no card projects, cards
-      are added inside the RBV (:func:`fill_silhouette`, ``cfg.fill``; needs ``rbv``).
+      are added inside the RBV (:func:`treeform.crown.sampling.fill_silhouette`, ``cfg.fill``; needs
+      ``rbv``).
     - With ``cfg.leaf_texture == "photo"``, the cards the camera sees turn to face it and every
       card shows its patch of the photo's crown (:func:`treeform.crown.photo_leaf_atlas`, as
       the envelope and abs routes do); the bark takes the photo's wood colour.
@@ -127,30 +67,13 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
     import scipy.ndimage as ndi
 
     from treeform.crown.layout import trunk_pixels
-    from treeform.crown.sampling import visual_hull_contains
+    from treeform.crown.sampling import carve_to_silhouette, fill_silhouette
 
     tree = seg.tree_mask
     leafy = tree & ~trunk_pixels(seg, layout)  # the trunk below the crown carries no leaves
     if cfg.carve:
-        from dataclasses import replace
-
         half = max(1, int(round(0.5 * float(np.median(foliage.size)) / mpp))) if len(foliage) else 1
-        # the silhouette's outline, not its gaps: a card is larger than most of them
-        disk = np.hypot(*np.mgrid[-half:half + 1, -half:half + 1]) <= half
-        grown = ndi.binary_fill_holes(ndi.binary_dilation(ndi.binary_closing(tree, disk, border_value=0), disk))
-        # a branch ends where it leaves the silhouette for good: a node stays while it or a node
-        # above it on its branches is inside (a limb crossing a gap of the mask is kept whole);
-        # the trunk stays, as the mask may miss part of it
-        inside = visual_hull_contains(camera, grown, skeleton.positions)
-        for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
-            if inside[i]:
-                inside[skeleton.parent[i]] = True
-        skeleton, new = skeleton.prune(inside | (skeleton.order == 0))
-        if len(foliage):
-            old = foliage.node
-            node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
-            kept = ((old < 0) | (node >= 0)) & visual_hull_contains(camera, grown, foliage.positions)
-            foliage = replace(foliage.subset(kept), node=node[kept])
+        skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, tree, margin=half)
     if cfg.fill and len(foliage) and rbv is not None:
         foliage = fill_silhouette(skeleton, foliage, camera, leafy, rbv, mpp=mpp, seed=cfg.seed)
     if seg.wood_mask.sum() > 20:

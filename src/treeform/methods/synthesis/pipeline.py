@@ -123,8 +123,10 @@ def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray,
     visible : ndarray (M,) bool
     shade : ndarray (M,) float in [0.55, 1]
     """
+    from treeform.crown.layout import row_extents
+
     h = mask.shape[0]
-    rows, left, right = _row_extents(mask)
+    rows, left, right = row_extents(mask)
     centre, half = 0.5 * (left + right), np.maximum(0.5 * (right - left + 1), 1.0)
     v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, h - 1)
     dx = uvz[:, 0] - centre[v]
@@ -137,20 +139,14 @@ def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray,
     return visible, shade
 
 
-def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(H,) each row's occupancy, leftmost and rightmost mask column (0 for empty rows)."""
-    rows = mask.any(1)
-    left = np.where(rows, mask.argmax(1), 0)
-    right = np.where(rows, mask.shape[1] - 1 - mask[:, ::-1].argmax(1), 0)
-    return rows, left, right
-
-
 def row_half_widths(mask: np.ndarray) -> np.ndarray:
     """(H,) half of each row's extent in ``mask`` (pixels), the max over a window of 2 % of the
     mask's height (0 for empty rows): the depth the revolved crown may have at that row."""
     import scipy.ndimage as ndi
 
-    rows, left, right = _row_extents(mask)
+    from treeform.crown.layout import row_extents
+
+    rows, left, right = row_extents(mask)
     hw = np.where(rows, 0.5 * (right - left + 1), 0.0)
     ys = np.flatnonzero(rows)
     win = max(1, int(0.02 * (np.ptp(ys) + 1))) if len(ys) else 1
