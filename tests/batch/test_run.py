@@ -80,7 +80,7 @@ def test_a_batch_records_bad_photos_skips_done_ones_on_rerun_and_kills_slow_ones
 
 
 def test_bad_arguments_give_one_line_and_no_output(tmp_path, folder):
-    for args in (["--timeout", "0"], ["--memory-limit", "lots"]):
+    for args in (["--timeout", "0"], ["--memory-limit", "lots"], ["--min-free", "lots"], ["--min-free", "1000TB"]):
         run = subprocess.run([sys.executable, "-m", "treeform", "batch", str(folder), "--out", str(tmp_path / "o")]
                              + args, capture_output=True, text=True, timeout=120)
         assert run.returncode != 0 and run.stderr.strip().count("\n") == 0, (args, run.stderr)
@@ -130,3 +130,48 @@ def test_a_crashed_child_is_run_once_more(tmp_path, monkeypatch, crashes, status
     calls.clear()
     monkeypatch.setattr(run_mod, "_attempt", lambda *a: (calls.append(a), ("timed out after 1 s", -9, True))[1])
     assert run_mod.reconstruct_one(str(SAMPLE), str(tmp_path / "u"))["attempts"] == 1 and len(calls) == 1
+
+
+def test_a_full_output_disk_stops_the_batch_cleanly_and_a_rerun_finishes_it(tmp_path, monkeypatch):
+    """Below --min-free the batch does not start (one line, no output); when the disk fills during
+    a batch, the photos not yet started are recorded as failed and not run, and a rerun once there
+    is space again does them and skips the ones already done."""
+    import shutil as _shutil
+
+    from treeform.batch import run as run_mod
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for k in range(3):
+        (photos / f"p{k}.jpg").write_bytes(b"x")
+    ran = []
+
+    def fake(cmd, tmp, deadline, timeout, memory_limit):  # a reconstruction that writes its metrics
+        ran.append(Path(cmd[4]).name)
+        tmp.mkdir(parents=True)
+        (tmp / "metrics.json").write_text(json.dumps({"iou": 0.9}))
+        return None, 0, False
+
+    free = {"bytes": 10**6}
+    real = _shutil.disk_usage
+    monkeypatch.setattr(run_mod, "_attempt", fake)
+    monkeypatch.setattr(run_mod.shutil, "disk_usage", lambda p: real(p)._replace(free=free["bytes"]))
+    with pytest.raises(InputError, match=r"^out: 1 MB free on the output disk, under the minimum of 500 MB"):
+        run_batch(photos, tmp_path / "o", workers=0)
+    assert not (tmp_path / "o").exists()
+
+    free["bytes"] = 10**9  # room for one photo: the disk "fills" as soon as the first is written
+    res = run_batch(photos, tmp_path / "o", workers=0, min_free="500MB",
+                    progress=lambda d, t: free.update(bytes=10**6) if d == 1 else None)
+    assert (res["done"], res["failed"]) == (1, 2) and ran == ["p0.jpg"]
+    fails = json.loads((tmp_path / "o" / "failures.json").read_text())
+    assert [f["photo"] for f in fails] == ["p1.jpg", "p2.jpg"]
+    assert all(f["reason"].startswith("not run: 1 MB free") for f in fails)
+    assert not any((tmp_path / "o" / n).exists() for n in ("p1", "p2", "p1.partial", "p2.partial"))
+
+    free["bytes"] = 10**10
+    res = run_batch(photos, tmp_path / "o", workers=0)
+    assert (res["done"], res["failed"], res["skipped"]) == (3, 0, 1) and ran == ["p0.jpg", "p1.jpg", "p2.jpg"]
+    assert parse_memory("none", what="min free") == 0
+    with pytest.raises(InputError, match="^min free: expected a size"):
+        run_batch(photos, tmp_path / "o", workers=0, min_free="plenty")

@@ -24,19 +24,23 @@ from pathlib import Path
 
 from treeform._shared.errors import InputError
 
-__all__ = ["PHOTO_SUFFIXES", "parse_memory", "list_photos", "reconstruct_one", "run_batch"]
+__all__ = ["PHOTO_SUFFIXES", "parse_memory", "free_space", "list_photos", "reconstruct_one", "run_batch"]
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
 """File suffixes (any case) taken as photos; other files in the folder are ignored."""
 MANIFEST, FAILURES, SUMMARY = "manifest.json", "failures.json", "summary.html"
+MIN_FREE = "500MB"
+"""Default free space a batch keeps on its output disk (a tree's folder takes a few MB)."""
 KEY_METRICS = ("reprojection_error", "iou", "front_ssim", "tree_height_m", "leaves", "triangles", "total_seconds")
 """The metrics.json figures the manifest and the contact sheet keep per photo."""
 _UNITS = {"": 1, "B": 1, "KB": 10**3, "MB": 10**6, "GB": 10**9, "TB": 10**12, "KIB": 2**10, "MIB": 2**20,
           "GIB": 2**30, "TIB": 2**40}
 
 
-def parse_memory(text) -> int:
+def parse_memory(text, *, what: str = "memory limit") -> int:
     """Bytes from ``"4GB"``, ``"512MiB"``, ``"2e9"``; 0 or ``"none"`` for no limit.
+
+    ``what`` names the option in the error message.
 
     Examples
     --------
@@ -53,8 +57,27 @@ def parse_memory(text) -> int:
     except ValueError:
         value = -1.0
     if unit not in _UNITS or not value > 0:
-        raise InputError(f"memory limit: expected a size like 4GB or 512MiB (or none), got {text!r}")
+        raise InputError(f"{what}: expected a size like 4GB or 512MiB (or none), got {text!r}")
     return int(value * _UNITS[unit])
+
+
+def free_space(path) -> int:
+    """Bytes free on the disk that holds ``path`` (or its nearest existing parent folder)."""
+    p = Path(path).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+def _low_disk(folder, min_free: int) -> str | None:
+    """The reason a photo is not run when its output disk has under ``min_free`` bytes free, else None."""
+    if not min_free:
+        return None
+    free = free_space(folder)
+    if free >= min_free:
+        return None
+    return (f"not run: {free / 1e6:.0f} MB free on the output disk, under the minimum of {min_free / 1e6:.0f} MB "
+            "(free some space or lower --min-free, then rerun)")
 
 
 def list_photos(input_dir) -> list[Path]:
@@ -139,8 +162,12 @@ def _attempt(cmd: list, tmp: Path, deadline: float, timeout: float, memory_limit
 
 
 def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: int = 0, timeout: float = 600.0,
-                    memory_limit: int = 0, options=()) -> dict:
+                    memory_limit: int = 0, min_free: int = 0, options=()) -> dict:
     """Reconstruct one photo into ``folder`` in a child process, killed past ``timeout`` s or ``memory_limit`` bytes.
+
+    With ``min_free`` > 0, a photo whose output disk has fewer bytes free is not started and
+    is recorded as failed with that reason (a rerun retries it): a batch that fills its disk
+    stops writing instead of leaving every later photo to fail on a half-written file.
 
     A child that crashes (ends by a signal it was not sent by this watch, e.g. a segmentation
     fault in a native library under load) is run once more before the photo is recorded as
@@ -153,6 +180,9 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
         or ``metrics`` (done: :data:`KEY_METRICS` from the photo's metrics.json).
     """
     out, tmp = Path(folder), Path(str(folder) + ".partial")
+    low = _low_disk(out.parent, min_free)
+    if low is not None:
+        return {"status": "failed", "reason": low, "seconds": 0.0, "attempts": 0}
     cmd = [sys.executable, "-m", "treeform", "reconstruct", str(photo), "--out", str(tmp), "--method", method,
            "--seed", str(int(seed)), *map(str, options)]
     t0 = time.perf_counter()
@@ -186,8 +216,8 @@ def _write_json(path: Path, data) -> None:
 
 
 def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, workers: int | None = None,
-              scheduler: str | None = None, timeout: float = 600.0, memory_limit="4GB", options=(),
-              progress=None) -> dict:
+              scheduler: str | None = None, timeout: float = 600.0, memory_limit="4GB", min_free=MIN_FREE,
+              options=(), progress=None) -> dict:
     """Reconstruct every photo of ``input_dir`` into ``out/NAME/``, one Dask task per photo.
 
     Parameters
@@ -210,6 +240,10 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
         Seconds a photo may take before it is killed and recorded as failed.
     memory_limit : str or int
         Resident memory a photo's process may use ("4GB"; 0 or "none": no limit).
+    min_free : str or int
+        Free space the output disk must keep ("500MB"; 0 or "none": no check). Below it the
+        batch does not start (an InputError), and photos reached once the disk has filled are
+        recorded as failed, not run, and retried by a rerun.
     options : sequence of str
         Further ``treeform reconstruct`` options, e.g. ``("--leaves", "4000")``.
     progress : callable, optional
@@ -239,7 +273,13 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     mem = parse_memory(memory_limit) if not isinstance(memory_limit, int) else int(memory_limit)
     if mem < 0:
         raise InputError(f"memory limit: expected 0 (none) or more bytes, got {mem}")
+    need = parse_memory(min_free, what="min free") if not isinstance(min_free, int) else int(min_free)
+    if need < 0:
+        raise InputError(f"min free: expected 0 (none) or more bytes, got {need}")
     out_dir = check_out_dir(out)
+    low = _low_disk(out_dir, need)
+    if low is not None:
+        raise InputError(f"out: {low.removeprefix('not run: ')}")
     out_dir.mkdir(parents=True, exist_ok=True)
     names = _folder_names(photos)
     mpath = out_dir / MANIFEST
@@ -247,7 +287,8 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     done_before = {n for n, e in manifest.items()
                    if e.get("status") == "done" and (out_dir / e.get("folder", n) / "metrics.json").is_file()}
     todo = [(p, n) for p, n in zip(photos, names) if n not in done_before]
-    kw = dict(method=method, seed=int(seed), timeout=float(timeout), memory_limit=mem, options=tuple(options))
+    kw = dict(method=method, seed=int(seed), timeout=float(timeout), memory_limit=mem, min_free=need,
+              options=tuple(options))
     t0 = time.perf_counter()
     state = {"n": len(done_before)}
 

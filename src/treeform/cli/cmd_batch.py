@@ -25,13 +25,16 @@ def batch_cmd(
                                   "recorded as failed."),
     memory_limit: str = typer.Option("4GB", "--memory-limit", help="Memory a photo's process may use "
                                      "(e.g. 4GB, 512MiB; none = no limit)."),
+    min_free: str = typer.Option("500MB", "--min-free", help="Free space to keep on the output disk: the batch "
+                                 "does not start below it, and stops starting photos once the disk fills "
+                                 "(they are recorded as failed; a rerun retries them). none = no check."),
 ):
     """Reconstruct every photo of a folder, one Dask task per photo; a contact sheet in summary.html."""
     from treeform.batch import run_batch
     from treeform.cli.progress import CountProgress
 
     res = run_api(run_batch, input_dir, out, method=method.value, seed=seed, workers=workers, scheduler=scheduler,
-                  timeout=timeout, memory_limit=memory_limit, display=CountProgress("photos"),
+                  timeout=timeout, memory_limit=memory_limit, min_free=min_free, display=CountProgress("photos"),
                   inputs=[input_dir])
     rate = f", {res['photos_per_second']:.2f} photos/s" if res["photos_per_second"] else ""
     typer.echo(f"{res['done']} of {res['total']} photos reconstructed ({res['skipped']} done before), "

@@ -26,7 +26,6 @@ import cv2
 import numpy as np
 
 from treeform._shared.errors import InputError, NoTreeFoundError
-from treeform.io.images import read_rgba
 from treeform.contour import (
     DEFAULT_COUNTS,
     crown_baseline,
