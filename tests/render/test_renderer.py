@@ -187,6 +187,28 @@ def test_vertex_colors_and_base_color_multiply(gl, meshes):
     assert np.abs(px - [128, 128, 0, 255]).max() <= 1
 
 
+def test_unlit_material_shows_its_colour_under_any_light(gl, meshes, tmp_path):
+    """KHR_materials_unlit: a lit quad takes the light's colour and strength, an unlit one shows
+    its base colour as it is, under a dim red light too; the flag survives a GLB round trip."""
+    from treeform.io.gltf import read_glb, read_glb_mesh, write_glb
+
+    cam = Camera(32, 32, 60.0, (0.0, 0.0, 2.5), (0.0, 0.0, 0.0))
+    dim_red = Lighting(key=(0.3, 0.0, 0.0), sky=(0.2, 0.05, 0.05), ground=(0.1, 0.0, 0.0), specular=0.0)
+    colour = (0.2, 0.6, 0.4, 1.0)
+    lit = Renderer(cam, samples=1, lighting=dim_red).render(meshes.quad(material=Material(base_color=colour)))
+    unlit_part = meshes.quad(material=Material(base_color=colour, unlit=True))
+    flat = Renderer(cam, samples=1, lighting=dim_red).render(unlit_part)
+    assert lit.color[16, 16, 1] < 40  # green barely lit by a red light
+    px = flat.color[16, 16, :3].astype(int)
+    assert np.abs(px - np.rint(255 * np.array(colour[:3]))).max() <= 1, px
+    write_glb(Mesh([unlit_part]), tmp_path / "u.glb")
+    assert "KHR_materials_unlit" in read_glb(tmp_path / "u.glb")[0]["extensionsUsed"]
+    back = read_glb_mesh(tmp_path / "u.glb")
+    assert back.parts[0].material.unlit
+    again = Renderer(cam, samples=1, lighting=dim_red).render(back)
+    assert np.array_equal(again.color[16, 16], flat.color[16, 16])
+
+
 def test_blend_material_gives_partial_alpha(gl, meshes):
     cam = Camera(32, 32, 60.0, (0.0, 0.0, 2.5), (0.0, 0.0, 0.0))
     part = meshes.quad(material=Material(base_color=(0.0, 0.0, 1.0, 0.5), alpha_mode="BLEND"))

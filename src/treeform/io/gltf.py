@@ -217,7 +217,8 @@ def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
     non-empty part; materials and textures shared where the same objects are). Instanced
     nodes carry ``EXT_mesh_gpu_instancing`` (listed in ``extensionsUsed`` and
     ``extensionsRequired``: a viewer without it would draw one tree where a forest stands);
-    unlit nodes' materials ``KHR_materials_unlit``.
+    unlit nodes' materials, and materials that are unlit themselves (:attr:`Material.unlit`),
+    ``KHR_materials_unlit``.
 
     Parameters
     ----------
@@ -299,7 +300,8 @@ def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
                 "NORMAL": b.add_accessor(_unit_normals(p.normals), _FLOAT, "VEC3", target=_ARRAY_BUFFER),
                 "TEXCOORD_0": b.add_accessor(p.uvs.astype(np.float32), _FLOAT, "VEC2", target=_ARRAY_BUFFER),
             }
-            if p.material.normal_texture is not None and len(p.indices) and not node.unlit:
+            unlit = node.unlit or p.material.unlit
+            if p.material.normal_texture is not None and len(p.indices) and not unlit:
                 # with a normal map, the tangent space travels with the mesh (a client's generated one
                 # may differ: the Khronos validator warns)
                 attributes["TANGENT"] = b.add_accessor(
@@ -313,7 +315,7 @@ def write_glb_scene(nodes, path, *, generator: str = "treeform") -> Path:
                 idx = b.add_accessor(flat.astype("<u2"), _UNSIGNED_SHORT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
             else:
                 idx = b.add_accessor(flat.astype("<u4"), _UNSIGNED_INT, "SCALAR", target=_ELEMENT_ARRAY_BUFFER)
-            primitives.append({"attributes": attributes, "indices": idx, "material": material_of(p.material, node.unlit),
+            primitives.append({"attributes": attributes, "indices": idx, "material": material_of(p.material, unlit),
                                "mode": _TRIANGLES, "extras": {"name": p.name}})
         name = node.name if node.name is not None else "+".join(p.name for _, p in parts)
         meshes.append({"name": name, "primitives": primitives})
@@ -704,7 +706,7 @@ def read_glb_mesh(path) -> Mesh:
     Reads what :func:`write_glb` writes (and simple glTF binaries like it): positions,
     normals (zeros where absent), ``TEXCOORD_0``, ``COLOR_0`` (white where absent), indices,
     and per material its name, ``baseColorFactor``, embedded ``baseColorTexture``,
-    ``alphaMode``, ``alphaCutoff``, ``doubleSided``, roughness and metallic. Node transforms
+    ``alphaMode``, ``alphaCutoff``, ``doubleSided``, roughness, metallic and ``KHR_materials_unlit``. Node transforms
     of the default scene are applied (normals by the inverse transpose). Normal maps and
     animations are left out.
 
@@ -737,7 +739,8 @@ def read_glb_mesh(path) -> Mesh:
                                     alpha_cutoff=float(m.get("alphaCutoff", 0.5)),
                                     double_sided=bool(m.get("doubleSided", False)),
                                     roughness=float(pbr.get("roughnessFactor", 1.0)),
-                                    metallic=float(pbr.get("metallicFactor", 1.0)))
+                                    metallic=float(pbr.get("metallicFactor", 1.0)),
+                                    unlit="KHR_materials_unlit" in m.get("extensions", {}))
         return materials[i]
 
     parts = []

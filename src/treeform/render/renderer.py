@@ -332,6 +332,7 @@ class Renderer:
                     r4 = max(float(m.roughness), 0.02) ** 4
                     _set(program, "u_shininess", float(min(max(2.0 / r4 - 2.0, 1.0), 4096.0)))
                     _set(program, "u_nscale", float(m.normal_scale))
+                    _set(program, "u_unlit", int(bool(m.unlit)))
                     if ntex is not None:
                         ntex.use(1)
                 tex.use(0)

@@ -90,6 +90,7 @@ uniform vec3 u_ground;
 uniform vec3 u_eye;
 uniform float u_specular;
 uniform float u_shininess;
+uniform int u_unlit;
 #if SHADOWS
 uniform sampler2DShadow u_shadow_map;
 uniform mat4 u_light_vp;
@@ -189,7 +190,9 @@ void main() {
             spec += u_light_cols[i] * (s * ndl * vis);
         }
     }
-    vec3 rgb = clamp(albedo.rgb * (ambient + diffuse) + u_specular * spec, 0.0, 1.0);
+    // KHR_materials_unlit: the colour is the albedo, its light baked in
+    vec3 rgb = u_unlit != 0 ? clamp(albedo.rgb, 0.0, 1.0)
+                            : clamp(albedo.rgb * (ambient + diffuse) + u_specular * spec, 0.0, 1.0);
 #if ALPHA_MODE == 2
     float a = clamp(albedo.a, 0.0, 1.0);
 #else

@@ -30,6 +30,9 @@ class Material:
         in the texture, +Z out of the surface), sampled with the same UVs as ``texture``.
     normal_scale : float
         Scales the normal map's X and Y (glTF ``normalTexture.scale``).
+    unlit : bool
+        Shown as its colour alone, with no lighting (glTF ``KHR_materials_unlit``: billboards and
+        impostor cards whose light is baked into the texture).
     """
 
     name: str = "material"
@@ -42,6 +45,7 @@ class Material:
     metallic: float = 0.0
     normal_texture: np.ndarray | None = None
     normal_scale: float = 1.0
+    unlit: bool = False
 
     def validate(self) -> None:
         if self.alpha_mode not in ("OPAQUE", "MASK", "BLEND"):
