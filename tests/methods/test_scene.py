@@ -50,6 +50,23 @@ def test_feet_are_where_trunks_meet_the_ground_not_where_a_crown_hangs():
     assert len(trunk_feet(m, wood)) == 3
 
 
+def test_two_trunks_close_together_are_two_feet_but_a_root_flare_is_one():
+    """Two lowest points a trunk's width apart are one foot only where the mask joins them just above
+    (a flare at the base); a near tree and one just behind it stand apart up to their crowns."""
+    m = np.zeros((120, 100), bool)
+    m[5:50, 10:90] = True       # the crowns, one piece
+    m[50:110, 40:43] = True     # a trunk to the ground
+    m[50:104, 50:53] = True     # a second one 10 px beside it, standing a little farther back
+    feet = [f for _, f in trunk_feet(m)]
+    assert feet == [(41.0, 109.0), (51.0, 103.0)]
+    one = np.zeros_like(m)
+    one[5:50, 10:90] = True
+    one[50:105, 42:48] = True   # one trunk whose foot flares into two lowest points, 7 px apart
+    one[104:110, 40:43] = True
+    one[104:108, 47:50] = True
+    assert [f for _, f in trunk_feet(one)] == [(41.0, 109.0)]
+
+
 def test_the_ground_placement_puts_every_foot_back_on_its_pixel():
     rng = np.random.default_rng(3)
     feet = np.c_[rng.uniform(50, 590, 6), rng.uniform(250, 470, 6)]

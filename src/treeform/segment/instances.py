@@ -45,6 +45,10 @@ learned foot detector's peaks snapped to the mask (:func:`snap_feet`), or both (
 NARROW = 0.12
 """A trunk's rows are at most this share of its cluster's height."""
 
+JOIN_DEPTH = 0.05
+"""Two lowest points of a cluster within a trunk's width of each other are one trunk's foot only
+if the mask joins them within this share of the cluster's height above them."""
+
 GROUND_TOLERANCE = 0.01
 """A foot may stand this share of the photo's height above the ground line
 (:func:`~treeform.segment.classical.ground_line`) in its column, not more."""
@@ -215,14 +219,45 @@ def trunk_feet(mask: np.ndarray, wood: np.ndarray | None = None, *, ground: np.n
     feet = [(m, f) for m, f, w in feet
             if not any(w & w2 and f2[1] > f[1] + 1 for _, f2, w2 in feet)]
     feet.sort(key=lambda t: t[1][0])
-    merged: list = []  # two lowest points of one trunk's foot (a fork, a root flare) are one foot
+    # two lowest points of one trunk's foot (a root flare, a fork at the ground) are one foot: close
+    # together and joined by the mask just above them; two trunks side by side stand apart there
+    depth = max(3, int(round(JOIN_DEPTH * height)))
+    merged: list = []
     for comp, foot in feet:
-        if merged and abs(foot[0] - merged[-1][1][0]) <= narrow_px:
+        if merged and abs(foot[0] - merged[-1][1][0]) <= narrow_px and _joined_low(mask, merged[-1][1], foot, depth):
             prev, pfoot = merged[-1]
             merged[-1] = (prev | comp, pfoot if pfoot[1] >= foot[1] else foot)
         else:
             merged.append((comp, foot))
     return merged
+
+
+def _joined_low(mask: np.ndarray, f1: tuple, f2: tuple, depth: int) -> bool:
+    """Whether two feet ``(u, v)`` are one piece of ``mask`` within ``depth`` rows above the higher
+    one (8-connected, in the band of rows from there down to the lower foot).
+
+    >>> m = np.zeros((40, 40), bool); m[5:38, 10:13] = True; m[5:38, 25:28] = True; m[5:10, 10:28] = True
+    >>> _joined_low(m, (11.0, 37.0), (26.0, 37.0), 4)    # two stems joined only 28 rows up: two trunks
+    False
+    >>> m[33:36, 10:28] = True                            # a flare joins them 2 rows above the feet
+    >>> _joined_low(m, (11.0, 37.0), (26.0, 37.0), 4)
+    True
+    """
+    import scipy.ndimage as ndi
+
+    H, W = mask.shape
+    top = max(0, int(min(f1[1], f2[1])) - depth)
+    bot = min(H - 1, int(max(f1[1], f2[1])))
+    lab, _ = ndi.label(mask[top:bot + 1], structure=np.ones((3, 3)))
+
+    def piece(f):
+        u = int(np.clip(round(f[0]), 0, W - 1))
+        cols = lab[:, max(0, u - 1):u + 2]  # the foot's column (a pixel either side), lowest labelled pixel
+        hit = np.flatnonzero(cols.max(1) > 0)
+        return int(cols[hit[-1]].max()) if hit.size else 0
+
+    a, b = piece(f1), piece(f2)
+    return a > 0 and a == b
 
 
 def split_at_trunks(mask: np.ndarray, trunks: list) -> list[np.ndarray]:
