@@ -196,3 +196,21 @@ def test_sparse_boost_draws_thin_cutouts_more_often():
     fill = np.array([(dense.labels > 0).mean(), (thin.labels > 0).mean()])
     assert boosted._cut_p[1] / boosted._cut_p[0] == pytest.approx(fill[0] / fill[1], rel=1e-6)
     assert boosted._cut_p[1] > 0.7
+
+
+def test_group_scene_truth_foot_is_on_each_library_trees_trunk():
+    """The true foot of a group composite is where the trunk meets the ground: for every library
+    tree the foot column holds bark (not green) in the sprite's lowest fifth, also for a conifer
+    whose needle skirt hangs lower than its trunk (pine_2: its lowest row is a needle tip at the
+    sprite's right edge, where the foot used to be put)."""
+    from treeform.data import data_path
+    from treeform.dataset.scenes import _sprite_foot, load_cutouts
+
+    for sp in load_cutouts(data_path("library")):
+        a = sp.rgba[..., 3] > 127
+        fx = int(round(_sprite_foot(a, sp.rgba[..., :3])))
+        rows = np.flatnonzero(a.any(1))
+        low = slice(int(rows[-1] - 0.2 * (rows[-1] - rows[0])), rows[-1] + 1)
+        col = sp.rgba[low, max(0, fx - 1):fx + 2]
+        bark = (col[..., 3] > 127) & (col[..., 1].astype(int) <= np.maximum(col[..., 0], col[..., 2]).astype(int) + 8)
+        assert bark.sum() >= 5, (sp.name, fx)

@@ -642,10 +642,24 @@ def paste_on_photo(sprite: Sprite, photo: np.ndarray, rng, *, size: int = 512,
     return out, lab > 0
 
 
-def _sprite_foot(a: np.ndarray) -> float:
-    """The column of a tree sprite's foot: in its lowest row, the middle of the opaque run whose
-    piece of the sprite's lower 30 % is largest (the trunk, which carries the tree; a leaf or a
-    twig hanging as low is a small piece of its own there)."""
+def _sprite_foot(a: np.ndarray, rgb: np.ndarray | None = None) -> float:
+    """The column of a tree sprite's foot (its trunk's, where the trunk meets the ground).
+
+    Without colour: in its lowest row, the middle of the opaque run whose piece of the
+    sprite's lower 30 % is largest (the trunk, which carries the tree; a leaf or a twig hanging
+    as low is a small piece of its own there). With ``rgb`` (the sprite's colours, (H, W, 3)):
+    the trunk is the bark of the lower 30 %, an upright, narrow piece of opaque pixels that are
+    not green (a conifer's skirt or a drooping branch can hang lower than the trunk's foot and
+    would pull the foot sideways); where such bark stands, the foot is the median column of
+    its lowest rows.
+
+    >>> a = np.zeros((100, 60), bool); a[10:80, 10:50] = True; a[80:95, 28:32] = True; a[90:100, 50:54] = True
+    >>> _sprite_foot(a)                          # a green tip hangs lowest, beside the trunk: it wins
+    51.5
+    >>> rgb = np.zeros((100, 60, 3), np.uint8); rgb[..., 1] = 160; rgb[80:95, 28:32] = (120, 90, 60)
+    >>> _sprite_foot(a, rgb)                     # the bark's column
+    29.5
+    """
     import scipy.ndimage as ndi
 
     h, w = a.shape
@@ -653,6 +667,23 @@ def _sprite_foot(a: np.ndarray) -> float:
     if rows.size == 0:
         return 0.5 * (w - 1)
     y0 = int(0.7 * (rows[-1] + 1))
+    if rgb is not None:
+        c = np.asarray(rgb, np.int32)[..., :3]
+        bark = a & (c[..., 1] <= np.maximum(c[..., 0], c[..., 2]) + 8)
+        bark[:y0] = False
+        lab, n = ndi.label(bark, structure=np.ones((3, 3)))
+        if n:
+            # the trunk: the bark piece reaching lowest among the upright, narrow ones (at least 5 % of
+            # the sprite's height, twice as tall as wide, at most 15 % of its width: not an autumn crown)
+            sizes = ndi.find_objects(lab)
+            tall = [k + 1 for k, sl in enumerate(sizes)
+                    if sl is not None and sl[0].stop - sl[0].start >= 0.05 * (rows[-1] - rows[0] + 1)
+                    and sl[0].stop - sl[0].start >= 2 * (sl[1].stop - sl[1].start) and sl[1].stop - sl[1].start <= 0.15 * w]
+            if tall:
+                k = max(tall, key=lambda k: sizes[k - 1][0].stop)
+                ys, xs = np.nonzero(lab == k)
+                low = ys >= ys.max() - max(1, int(0.02 * h))
+                return float(np.median(xs[low]))
     lab, _ = ndi.label(a[y0:rows[-1] + 1], structure=np.ones((3, 3)))
     bottom = lab[-1]
     area = np.bincount(lab.ravel())
@@ -713,7 +744,7 @@ def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y:
         u, v = W / 2 + f * x / z, horizon + f * camera_height / z
         hpx = f * heights[k] / z
         rgba = sprites[k].rgba.astype(np.float32) / 255.0
-        fx = _sprite_foot(rgba[..., 3] > 0.5)  # the sprite's trunk column, its lowest row at (u, v)
+        fx = _sprite_foot(rgba[..., 3] > 0.5, sprites[k].rgba[..., :3])  # its trunk's column, lowest row at (u, v)
         sc = hpx / rgba.shape[0]
         shift = (0.5 * (rgba.shape[1] - 1) - fx) * sc
         _paste(img, lab, rgba, None, hpx, u + shift, v + 1.0, label_value=k + 1)
