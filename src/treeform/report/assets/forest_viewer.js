@@ -8,7 +8,7 @@
   const { GLTFLoader } = __tf_require('three/addons/loaders/GLTFLoader.js');
   const { OrbitControls } = __tf_require('three/addons/controls/OrbitControls.js');
   const D = window.__tf_forest;
-  window.treeformViewerState = { done: false, error: null, near: 0, far: 0, billboards: 0 };
+  window.treeformViewerState = { done: false, error: null, near: 0, far: 0, billboards: 0, culled: 0 };
 
   function bytes(b64) {
     const bin = atob(b64), out = new Uint8Array(bin.length);
@@ -165,7 +165,11 @@
       shared.eye.value.copy(camera.position);
       const focal = 0.5 * canvas.clientHeight / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
       const fwd = new THREE.Vector3(); camera.getWorldDirection(fwd);
-      let near = 0, far = 0, billboards = 0;
+      // frustum culling: a tree whose bounding sphere (crown and trunk) misses the view is not drawn
+      const frustum = new THREE.Frustum().setFromProjectionMatrix(
+        new THREE.Matrix4().multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse));
+      const sphere = new THREE.Sphere();
+      let near = 0, far = 0, billboards = 0, culled = 0;
       for (let k = 0; k < list.length; k++) {
         const sp = list[k], S = sp.S, c = S.rdm.center, P = sp.points.length / 3;
         const farRows = [], bb = [], inst = [], extra = [], wood = [];
@@ -175,7 +179,9 @@
           const w = yawRotate(c[0] * s, c[1] * s, c[2] * s, yaw);
           const dx = x + w[0] - camera.position.x, dy = y + w[1] - camera.position.y, dz = z + w[2] - camera.position.z;
           const along = dx * fwd.x + dy * fwd.y + dz * fwd.z, r = S.radius * s;
-          if (along < -r) continue;  // behind the camera
+          sphere.center.set(x + w[0], y + w[1], z + w[2]);
+          sphere.radius = r + Math.hypot(c[0], c[1], c[2]) * s;  // the crown's reach plus its height over the foot
+          if (!frustum.intersectsSphere(sphere)) { culled++; continue; }
           if (Math.hypot(dx, dy, dz) >= D.switch_distance) { farRows.push(x, y, z, s, yaw, 0); far++; continue; }
           near++;
           const px = 2 * r * focal / Math.max(along, camera.near);
@@ -204,7 +210,7 @@
         }
       }
       renderer.render(scene, camera);
-      Object.assign(window.treeformViewerState, { near: near, far: far, billboards: billboards,
+      Object.assign(window.treeformViewerState, { near: near, far: far, billboards: billboards, culled: culled,
         done: shared.loaded === list.length, calls: renderer.info.render.calls });
     }
     shared.update = update;
