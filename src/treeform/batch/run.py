@@ -70,13 +70,13 @@ def free_space(path) -> int:
 
 
 def _low_disk(folder, min_free: int) -> str | None:
-    """The reason a photo is not run when its output disk has under ``min_free`` bytes free, else None."""
+    """What is wrong when ``folder``'s disk has under ``min_free`` bytes free, else None."""
     if not min_free:
         return None
     free = free_space(folder)
     if free >= min_free:
         return None
-    return (f"not run: {free / 1e6:.0f} MB free on the output disk, under the minimum of {min_free / 1e6:.0f} MB "
+    return (f"{free / 1e6:.0f} MB free on the output disk, under the minimum of {min_free / 1e6:.0f} MB "
             "(free some space or lower --min-free, then rerun)")
 
 
@@ -182,7 +182,7 @@ def reconstruct_one(photo: str, folder: str, *, method: str = "envelope", seed: 
     out, tmp = Path(folder), Path(str(folder) + ".partial")
     low = _low_disk(out.parent, min_free)
     if low is not None:
-        return {"status": "failed", "reason": low, "seconds": 0.0, "attempts": 0}
+        return {"status": "failed", "reason": f"not run: {low}", "seconds": 0.0, "attempts": 0}
     cmd = [sys.executable, "-m", "treeform", "reconstruct", str(photo), "--out", str(tmp), "--method", method,
            "--seed", str(int(seed)), *map(str, options)]
     t0 = time.perf_counter()
@@ -279,7 +279,7 @@ def run_batch(input_dir, out, *, method: str = "envelope", seed: int = 0, worker
     out_dir = check_out_dir(out)
     low = _low_disk(out_dir, need)
     if low is not None:
-        raise InputError(f"out: {low.removeprefix('not run: ')}")
+        raise InputError(f"out: {low}")
     out_dir.mkdir(parents=True, exist_ok=True)
     names = _folder_names(photos)
     mpath = out_dir / MANIFEST

@@ -675,12 +675,16 @@ def _sprite_foot(a: np.ndarray, rgb: np.ndarray | None = None) -> float:
         if n:
             # the trunk: the bark piece reaching lowest among the upright, narrow ones (at least 5 % of
             # the sprite's height, twice as tall as wide, at most 15 % of its width: not an autumn crown)
-            sizes = ndi.find_objects(lab)
-            tall = [k + 1 for k, sl in enumerate(sizes)
-                    if sl is not None and sl[0].stop - sl[0].start >= 0.05 * (rows[-1] - rows[0] + 1)
-                    and sl[0].stop - sl[0].start >= 2 * (sl[1].stop - sl[1].start) and sl[1].stop - sl[1].start <= 0.15 * w]
+            boxes = ndi.find_objects(lab)
+            min_h = 0.05 * (rows[-1] - rows[0] + 1)
+
+            def upright(sl) -> bool:
+                bh, bw = sl[0].stop - sl[0].start, sl[1].stop - sl[1].start
+                return bh >= min_h and bh >= 2 * bw and bw <= 0.15 * w
+
+            tall = [k + 1 for k, sl in enumerate(boxes) if sl is not None and upright(sl)]
             if tall:
-                k = max(tall, key=lambda k: sizes[k - 1][0].stop)
+                k = max(tall, key=lambda k: boxes[k - 1][0].stop)
                 ys, xs = np.nonzero(lab == k)
                 low = ys >= ys.max() - max(1, int(0.02 * h))
                 return float(np.median(xs[low]))
