@@ -112,6 +112,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="keep the reconstruction here")
     ap.add_argument("--json", type=Path, default=None, help="write the scores here")
     ap.add_argument("--no-peer", action="store_true", help="skip pc-skeletor")
+    ap.add_argument("--leaf-texture", default="photo", choices=("photo", "procedural"))
     a = ap.parse_args(argv)
 
     from scipy.spatial import cKDTree
@@ -132,7 +133,8 @@ def main(argv=None) -> int:
     H = float(meta["height"])
 
     t0 = time.perf_counter()
-    res = reconstruct_multiview(cap / "images", out=a.out or tmp / "out", segmenter=a.mattes if a.mattes != "truth"
+    res = reconstruct_multiview(cap / "images", out=a.out or tmp / "out", leaf_texture=a.leaf_texture,
+                                segmenter=a.mattes if a.mattes != "truth"
                                 else "learned", masks=cap / "truth" / "labels" if a.mattes == "truth" else None,
                                 seed=a.seed)
     t_total = time.perf_counter() - t0
@@ -181,15 +183,28 @@ def main(argv=None) -> int:
     rec = Mesh([MeshPart(s * p.positions @ R.T + t, p.normals @ R.T, p.uvs, p.colors, p.indices, p.material, p.name)
                 for p in res.mesh.parts])
     names = sorted(truth)
-    ious = []
+    ious, extra, missed = [], [], []
     for k in range(len(names)):
         A, B = truth[names[k]], truth[names[(k + 1) % len(names)]]
         T = _mid_camera(np.asarray(A["cam_to_world"]), np.asarray(B["cam_to_world"]))
         m_true = _render_mask(true_mesh, np.asarray(A["K"]), T, A["size"])
         m_rec = _render_mask(rec, np.asarray(A["K"]), T, A["size"])
         ious.append((m_true & m_rec).sum() / max((m_true | m_rec).sum(), 1))
+        extra.append((m_rec & ~m_true).sum() / max(m_true.sum(), 1))
+        missed.append((m_true & ~m_rec).sum() / max(m_true.sum(), 1))
+        if k == 0 and a.out is not None:  # where the first novel view goes wrong: extra red, missed blue
+            from PIL import Image
+
+            vis = np.full(m_true.shape + (3,), 255, np.uint8)
+            vis[m_true & m_rec] = (90, 150, 70)
+            vis[m_rec & ~m_true] = (220, 40, 40)
+            vis[m_true & ~m_rec] = (40, 80, 220)
+            Image.fromarray(vis).save(a.out / "novel_view_00.png")
     scores["novel_view_iou_median"] = float(np.median(ious))
     scores["novel_view_iou_min"] = float(np.min(ious))
+    # shares of the true silhouette's area: what the model adds, and what it misses
+    scores["novel_view_extra_median"] = float(np.median(extra))
+    scores["novel_view_missed_median"] = float(np.median(missed))
     scores = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in scores.items()}
     print(json.dumps(scores, indent=1))
     if a.json:

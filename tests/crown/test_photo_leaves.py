@@ -123,3 +123,75 @@ def test_camera_sees_the_front_of_a_crown_and_shades_its_back():
     assert np.all(shade[vis] == 1.0) and shade[z < -2.0].mean() < shade[(z > 0) & ~vis].mean() <= 1.0
     vis_none, _ = camera_sees(f, cam, np.zeros((200, 200), bool))
     assert not vis_none.any()  # off the tree mask nothing shows
+
+
+def test_views_atlas_cuts_each_card_from_the_view_it_faces():
+    """Cards on a crown seen from the front and the back: each card's tile comes from the photo
+    on its side, its gaps included; rendered from either camera the cards show that photo."""
+    from treeform.crown.photo_leaves import choose_views, views_leaf_atlas
+
+    back = Camera(96, 96, 40.0, (0.0, 0.0, -10.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    img, alpha = _photo()
+    other = np.roll(img, 19, axis=1)  # the back photo: another texture
+    alpha_b = alpha.copy()
+    alpha_b[40:56, :] = 0.0  # a gap through the crown seen from the back
+    front_cards = _cards(300, seed=1)
+    rear = _cards(300, seed=2)
+    rear = Foliage(rear.positions * [1, 1, -1] - [0, 0, 3.0], -rear.normals, rear.up, rear.size, rear.color)
+    cards = Foliage(*(np.concatenate([getattr(front_cards, k), getattr(rear, k)]) for k in
+                      ("positions", "normals", "up", "size", "color")))
+    view, vis, shade = choose_views(cards, [CAM, back], [alpha > 0, alpha_b > 0])
+    assert (view[:300] == 0).mean() > 0.95 and (view[300:] == 1).mean() > 0.95
+    assert vis.mean() > 0.8 and np.all(shade[vis] == 1.0)
+    atlas, f = views_leaf_atlas(cards, [CAM, back], [img, other], [alpha, alpha_b], view, visible=vis,
+                                shade=shade, tile=32, detail=0.0, seed=0)
+    assert len(np.unique(f.uv, axis=0)) == 600
+    res = _render(Foliage(f.positions[:300], f.normals[:300], f.up[:300], f.size[:300], f.color[:300],
+                          uv=f.uv[:300]), atlas)
+    inner = res.mask & (alpha > 0)
+    assert np.median(np.abs(res.color[..., :3].astype(float) - img.astype(float))[inner]) < 12
+    # from the back, its own photo and its gap (the render's image is mirrored: the back camera looks along +z)
+    from treeform.render import Lighting, Renderer
+    from treeform.geometry import leaf_cards
+    from treeform.structures import Mesh
+
+    unlit = Lighting(key=(0.0, 0.0, 0.0), sky=(1.0, 1.0, 1.0), ground=(1.0, 1.0, 1.0))
+    r = Renderer(back, samples=1, lighting=unlit)
+    try:
+        rb = r.render(Mesh([leaf_cards(Foliage(f.positions[300:], f.normals[300:], f.up[300:], f.size[300:],
+                                               f.color[300:], uv=f.uv[300:]), texture=atlas)]))
+    finally:
+        r.release()
+    inner_b = rb.mask & (alpha_b > 0)
+    assert inner_b.sum() > 0.5 * (alpha_b > 0).sum()
+    assert np.median(np.abs(rb.color[..., :3].astype(float) - other.astype(float))[inner_b]) < 12
+    assert rb.mask[42:54, 20:76].mean() < 0.05  # the gap stays open
+    # deterministic; bad input is one clear error
+    a2, _ = views_leaf_atlas(cards, [CAM, back], [img, other], [alpha, alpha_b], view, visible=vis, shade=shade,
+                             tile=32, detail=0.0, seed=0)
+    np.testing.assert_array_equal(atlas, a2)
+    with pytest.raises(InputError, match="view"):
+        views_leaf_atlas(cards, [CAM, back], [img, other], [alpha, alpha_b], np.full(600, 2))
+    with pytest.raises(InputError, match="alphas"):
+        views_leaf_atlas(cards, [CAM, back], [img, other], [alpha], view)
+
+
+def test_carve_texels_is_the_visual_hull_of_the_views_with_a_tolerance():
+    from treeform.crown.photo_leaves import carve_texels
+
+    cams = [Camera(64, 64, 40.0, tuple(10.0 * np.array([np.sin(a), 0.0, np.cos(a)])), (0, 0, 0), (0, 1, 0))
+            for a in np.linspace(0, 2 * np.pi, 5)[:4]]
+    f = Foliage([[0, 0, 0]], [[0, 0, 1]], [[0, 1, 0]], [2.0], [[1, 1, 1]])
+    full = np.ones((64, 64), bool)
+    holed = full.copy()
+    holed[28:36, 28:36] = False  # one view sees through the card's middle
+    keep = carve_texels(f, cams, [full, holed, full, full], 8, tolerance=0.0)[0]
+    assert keep.shape == (8, 8) and keep[0, 0] == 1 and keep[4, 4] == 0 and 0 < keep.mean() < 1
+    assert carve_texels(f, cams, [full, holed, full, full], 8, tolerance=0.3)[0].all()  # 1 of 4 views tolerated
+    # a texel no view holds (all project outside the images) is kept: nothing says it is not tree
+    far = Foliage([[500.0, 0, 0]], [[0, 0, 1]], [[0, 1, 0]], [1.0], [[1, 1, 1]])
+    assert carve_texels(far, cams[:1], [np.zeros((64, 64), bool)], 4).all()
+    with pytest.raises(InputError, match="tolerance"):
+        carve_texels(f, cams, [full] * 4, 8, tolerance=0.5)
+    with pytest.raises(InputError, match="masks"):
+        carve_texels(f, cams, [full] * 3, 8)

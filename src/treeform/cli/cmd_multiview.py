@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, IMPOSTOR_HELP, Lod, run_api, seed_option, write_impostor, write_report
+from treeform.cli.app import app, IMPOSTOR_HELP, LeafTexture, Lod, run_api, seed_option, write_impostor, write_report
 
 
 @app.command()
@@ -17,6 +17,9 @@ def multiview(
     seed: int = seed_option(),
     leaves: int = typer.Option(15000, "--leaves", help="Number of leaf clusters (most on the crown surface the photos see)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
+    leaf_texture: LeafTexture = typer.Option(LeafTexture.photo, "--leaf-texture", help="Leaf cards wear the "
+                                             "photos' own crown, each from the photo that sees it best ('photo', "
+                                             "default) or drawn leaves tinted with the photos' colours."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
@@ -30,6 +33,7 @@ def multiview(
     from treeform.methods.multiview.pipeline import STAGES, reconstruct_multiview
 
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
+                  leaf_texture=leaf_texture.value,
                   height=height, segmenter=segmenter, masks=masks,
                   inputs=(("PHOTO_DIR", photos), ("--masks", masks)))
     m = res.metrics

@@ -21,7 +21,7 @@ from treeform._shared.rng import as_rng
 from treeform.structures.camera import Camera
 from treeform.structures.foliage import Foliage
 
-__all__ = ["photo_leaf_atlas", "face_camera", "camera_sees"]
+__all__ = ["photo_leaf_atlas", "views_leaf_atlas", "choose_views", "face_camera", "camera_sees", "default_tile", "carve_texels"]
 
 _SHAPES = 4  # distinct cluster outlines; each also turned by 0/90/180/270 degrees and mirrored
 
@@ -166,6 +166,23 @@ def _shapes(tile: int, kind: str, seed: int, grow: int) -> tuple[np.ndarray, np.
     return np.stack(alpha), np.stack(detail)
 
 
+def _check_tile_options(kind: str, detail: float, oblique: float) -> None:
+    """One-line errors for the tile options shared by :func:`photo_leaf_atlas` and :func:`views_leaf_atlas`."""
+    from treeform.geometry.leaves import TEXTURE_KINDS
+
+    if kind not in TEXTURE_KINDS:
+        raise InputError(f"kind: expected one of {TEXTURE_KINDS}, got {kind!r}")
+    for name, v in (("detail", detail), ("oblique", oblique)):
+        if not 0.0 <= float(v) <= 1.0:
+            raise InputError(f"{name}: expected a number in [0, 1], got {v!r}")
+
+
+def _tile_shapes(tile: int, kind: str, seed) -> tuple[np.ndarray, np.ndarray]:
+    """The cluster outlines of the tiles (:func:`_shapes`), grown for broadleaf kinds."""
+    return _shapes(tile, kind, int(seed) if not isinstance(seed, np.random.Generator) else 0,
+                   grow=max(1, tile // 6) if kind in ("cluster", "leaf") else 1)
+
+
 def _pack(tiles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lay (T, t, t, 4) tiles in rows of a square atlas; returns it and each tile's uv rectangle.
 
@@ -243,10 +260,6 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     >>> bool(red[:, :6][opaque[:, :6]].mean() < 60 and red[:, 10:][opaque[:, 10:]].mean() > 150)
     True
     """
-    import cv2
-
-    from treeform.geometry.leaves import TEXTURE_KINDS, card_frames
-
     if not isinstance(foliage, Foliage):
         raise InputError(f"foliage: expected a Foliage, got {type(foliage).__name__}")
     image = np.asarray(image)
@@ -255,12 +268,8 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     alpha = np.asarray(alpha, np.float32)
     if alpha.shape != image.shape[:2]:
         raise InputError(f"alpha: expected shape {image.shape[:2]}, got {alpha.shape}")
-    if kind not in TEXTURE_KINDS:
-        raise InputError(f"kind: expected one of {TEXTURE_KINDS}, got {kind!r}")
+    _check_tile_options(kind, detail, oblique)
     max_tiles = check_int(max_tiles, "max_tiles", 1, 1 << 20)
-    for name, v in (("detail", detail), ("oblique", oblique)):
-        if not 0.0 <= float(v) <= 1.0:
-            raise InputError(f"{name}: expected a number in [0, 1], got {v!r}")
     m = len(foliage)
     if m == 0:
         return np.zeros((4, 4, 4), np.uint8), foliage
@@ -272,23 +281,8 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
         raise InputError(f"shade: expected {m} numbers in [0, 1]")
     rng = as_rng(seed)
 
-    # each card's centre and half-axes in photo pixels (an affine map: the camera is far away)
-    _, up, right = card_frames(foliage)
-    half = 0.5 * foliage.size[:, None]
-    c = camera.project(foliage.positions)
-    a = camera.project(foliage.positions + half * right)[:, :2] - c[:, :2]  # texture +s
-    b = camera.project(foliage.positions - half * up)[:, :2] - c[:, :2]  # texture +t (down)
-    facing = 0.5 * foliage.size * camera.focal / np.maximum(c[:, 2], 1e-9)  # a camera-facing card's half size
-    edge_on = (np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) < oblique * facing**2) | ~vis
-    # oblique cards would stretch a sliver of the photo over the whole tile (streaks from the
-    # side), and hidden ones gain nothing from the exact projection: they show the patch a
-    # card facing the camera would, turned as the card is
-    ang = np.arctan2(a[edge_on, 1], a[edge_on, 0])
-    rot = np.column_stack([np.cos(ang), np.sin(ang)])
-    a[edge_on] = facing[edge_on, None] * rot
-    b[edge_on] = facing[edge_on, None] * np.column_stack([-rot[:, 1], rot[:, 0]])
     if tile is None:
-        tile = int(np.clip(2 ** round(math.log2(max(2.0 * float(np.median(facing)), 1.0))), 16, 32))
+        tile = default_tile(foliage, camera)
     tile = check_int(tile, "tile", 8, 128)
 
     # tiles: every card its own while they fit, else the hidden ones borrow a visible one's
@@ -296,6 +290,7 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     if m > max_tiles:
         from scipy.spatial import cKDTree
 
+        c = camera.project(foliage.positions)
         own = np.flatnonzero(vis)
         if len(own) > max_tiles:
             own = np.sort(rng.choice(own, max_tiles, replace=False))
@@ -305,16 +300,61 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
         _, j = cKDTree(c[own, :2]).query(c[borrow, :2])
         owner[borrow] = own[j]
     tiles, tile_of = np.unique(owner, return_inverse=True)
-    n_tiles = len(tiles)
+    shape_alpha, detail_lum = _tile_shapes(tile, kind, seed)
+    pick = rng.integers(0, len(shape_alpha), len(tiles))
+    tex = _card_tiles(foliage, tiles, camera, image, alpha, vis[tiles], dark[tiles], tile=tile, oblique=oblique,
+                      shapes=(shape_alpha, detail_lum), pick=pick, detail=detail)
+    atlas, rects = _pack(tex)
+    rect = rects[tile_of]
+    return atlas, foliage.with_colors(foliage.color, uv=rect)
 
+
+def default_tile(foliage: Foliage, camera: Camera) -> int:
+    """Tile edge in texels for cards seen by ``camera``: the median card's size in its pixels, as a power of two in [16, 32]."""
+    c = camera.project(foliage.positions)
+    facing = foliage.size * camera.focal / np.maximum(c[:, 2], 1e-9)
+    return int(np.clip(2 ** round(math.log2(max(float(np.median(facing)), 1.0))), 16, 32))
+
+
+def _card_tiles(foliage: Foliage, cards: np.ndarray, camera: Camera, image: np.ndarray, alpha: np.ndarray,
+                vis: np.ndarray, dark: np.ndarray, *, tile: int, oblique: float, shapes: tuple, pick: np.ndarray,
+                detail: float) -> np.ndarray:
+    """(len(cards), tile, tile, 4) float tiles of the cards ``cards``: the photo under each texel, in a cluster outline.
+
+    ``vis``, ``dark`` and ``pick`` are per tile (aligned with ``cards``); see :func:`photo_leaf_atlas`.
+    """
+    import cv2
+
+    from treeform.geometry.leaves import card_frames
+
+    n_tiles = len(cards)
+    if n_tiles == 0:
+        return np.zeros((0, tile, tile, 4), np.float32)
+    sub = Foliage(foliage.positions[cards], foliage.normals[cards], foliage.up[cards], foliage.size[cards],
+                  foliage.color[cards])
+    # each card's centre and half-axes in photo pixels (an affine map: the camera is far away)
+    _, up, right = card_frames(sub)
+    half = 0.5 * sub.size[:, None]
+    c = camera.project(sub.positions)
+    a = camera.project(sub.positions + half * right)[:, :2] - c[:, :2]  # texture +s
+    b = camera.project(sub.positions - half * up)[:, :2] - c[:, :2]  # texture +t (down)
+    facing = 0.5 * sub.size * camera.focal / np.maximum(c[:, 2], 1e-9)  # a camera-facing card's half size
+    edge_on = (np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) < oblique * facing**2) | ~vis
+    # oblique cards would stretch a sliver of the photo over the whole tile (streaks from the
+    # side), and hidden ones gain nothing from the exact projection: they show the patch a
+    # card facing the camera would, turned as the card is
+    ang = np.arctan2(a[edge_on, 1], a[edge_on, 0])
+    rot = np.column_stack([np.cos(ang), np.sin(ang)])
+    a[edge_on] = facing[edge_on, None] * rot
+    b[edge_on] = facing[edge_on, None] * np.column_stack([-rot[:, 1], rot[:, 0]])
     # sample the photo (colour and alpha) under every texel of every tile
     g = (np.arange(tile, dtype=np.float32) + 0.5) / tile - 0.5  # texel centres in [-0.5, 0.5)
     s = g[None, None, :]  # along +s (columns)
     t = g[None, :, None]  # along +t (rows)
-    cc, aa, bb = c[tiles, :2].astype(np.float32), a[tiles].astype(np.float32), b[tiles].astype(np.float32)
+    cc, aa, bb = c[:, :2].astype(np.float32), a.astype(np.float32), b.astype(np.float32)
     px = cc[:, 0, None, None] + 2 * (s * aa[:, 0, None, None] + t * bb[:, 0, None, None])
     py = cc[:, 1, None, None] + 2 * (s * aa[:, 1, None, None] + t * bb[:, 1, None, None])
-    photo = np.concatenate([image.astype(np.float32) / 255.0, alpha[..., None]], axis=2)
+    photo = np.concatenate([image.astype(np.float32) / 255.0, np.asarray(alpha, np.float32)[..., None]], axis=2)
     # bilinear, pixel centres at +0.5, the border repeated; tiles stacked into tall images
     # (OpenCV maps stay under 32767 rows)
     step = 32000 // tile
@@ -322,12 +362,262 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
         cv2.remap(photo, (px[i:i + step] - 0.5).reshape(-1, tile), (py[i:i + step] - 0.5).reshape(-1, tile),
                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(-1, tile, tile, 4)
         for i in range(0, n_tiles, step)])
+    shape_alpha, detail_lum = shapes
+    return _finish_tiles(sample, shape_alpha.astype(np.float32), detail_lum.astype(np.float32), pick,
+                         np.asarray(dark, np.float32), np.float32(detail))
 
-    shape_alpha, detail_lum = _shapes(tile, kind, int(seed) if not isinstance(seed, np.random.Generator) else 0,
-                                      grow=max(1, tile // 6) if kind in ("cluster", "leaf") else 1)
-    pick = rng.integers(0, len(shape_alpha), n_tiles)
-    tex = _finish_tiles(sample, shape_alpha.astype(np.float32), detail_lum.astype(np.float32), pick,
-                        dark[tiles].astype(np.float32), np.float32(detail))
+
+def choose_views(foliage: Foliage, cameras, masks, images=None, *,
+                 agree: float = 30.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each card, the photo of several that shows it best, whether it shows there, and its shade.
+
+    A card is seen by a view when :func:`camera_sees` says so (it projects onto the view's tree
+    mask, near the front of the cards there). With ``images``, a view must also agree with the
+    others on the card's colour: the photo's colour at the card's centre within ``agree`` (RGB,
+    0-255) of the median over the views that see it, so a view where something else covers the
+    card (a neighbouring tree, a facade or sky the mask took in) is not its view unless none
+    agrees (then the view nearest the median). Among those views, the one it faces most (its
+    outward direction from the crown's centre against the direction to the camera) is its
+    view; a card no view sees takes the view it faces most, as hidden, with that view's shade.
+
+    Parameters
+    ----------
+    foliage : Foliage
+        M cards in the cameras' world.
+    cameras : sequence of Camera
+        V cameras.
+    masks : sequence of ndarray, shape (H_k, W_k), bool
+        The tree in each view (each camera's image size).
+    images : sequence of ndarray, shape (H_k, W_k, 3), uint8, optional
+        The photos, for the colour agreement.
+    agree : float
+        Largest distance of a view's colour from the median one (RGB units).
+
+    Returns
+    -------
+    view : ndarray, shape (M,), int
+    visible : ndarray, shape (M,), bool
+    shade : ndarray, shape (M,), float in [0.55, 1]
+
+    Examples
+    --------
+    >>> cams = [Camera(64, 64, 40.0, (0, 0, z), (0, 0, 0), (0, 1, 0)) for z in (10.0, -10.0)]
+    >>> f = Foliage([[0, 0, 1.0], [0, 0, -1.0]], [[0, 0, 1], [0, 0, -1]], [[0, 1, 0]] * 2, [0.2] * 2,
+    ...             [[1, 1, 1]] * 2)
+    >>> view, vis, _ = choose_views(f, cams, [np.ones((64, 64), bool)] * 2)
+    >>> view.tolist(), vis.tolist()
+    ([0, 1], [True, True])
+    """
+    cameras, masks = list(cameras), list(masks)
+    if not cameras or len(cameras) != len(masks):
+        raise InputError(f"cameras, masks: expected as many masks as cameras (at least one), got {len(cameras)} "
+                         f"and {len(masks)}")
+    m = len(foliage)
+    if m == 0:
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.ones(0)
+    out = foliage.positions - np.median(foliage.positions, axis=0)
+    out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+    faces = np.empty((len(cameras), m))
+    seen = np.empty((len(cameras), m), bool)
+    shades = np.empty((len(cameras), m))
+    for k, (cam, mask) in enumerate(zip(cameras, masks)):
+        seen[k], shades[k] = camera_sees(foliage, cam, mask)
+        to_cam = np.asarray(cam.position, np.float64) - foliage.positions
+        to_cam /= np.maximum(np.linalg.norm(to_cam, axis=1, keepdims=True), 1e-12)
+        faces[k] = (to_cam * out).sum(1)
+    visible = seen.any(0)
+    ok = seen
+    if images is not None:
+        images = list(images)
+        if len(images) != len(cameras):
+            raise InputError(f"images: expected {len(cameras)} photos, got {len(images)}")
+        col = np.full((len(cameras), m, 3), np.nan, np.float32)
+        for k, (cam, img) in enumerate(zip(cameras, images)):
+            img = np.asarray(img)
+            if img.shape[:2] != (cam.height, cam.width):
+                raise InputError(f"images[{k}]: expected shape {(cam.height, cam.width)}, got {img.shape[:2]}")
+            j = np.flatnonzero(seen[k])
+            uv = cam.project(foliage.positions[j])
+            u = np.clip(np.floor(uv[:, 0]).astype(np.int64), 0, cam.width - 1)
+            v = np.clip(np.floor(uv[:, 1]).astype(np.int64), 0, cam.height - 1)
+            col[k, j] = img[v, u, :3]
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # cards no view sees: all NaN
+            med = np.nanmedian(col, axis=0)
+        dev = np.linalg.norm(col - med[None], axis=2)
+        dev = np.where(seen, dev, np.inf)
+        ok = dev <= agree
+        ok |= seen & (dev <= dev.min(0, initial=np.inf)[None]) & ~ok.any(0)[None]  # none agrees: the nearest
+    view = np.where(visible, np.argmax(np.where(ok, faces, -np.inf), axis=0), np.argmax(faces, axis=0))
+    shade = np.where(visible, 1.0, shades[view, np.arange(m)])
+    return view.astype(np.int64), visible, shade
+
+
+def views_leaf_atlas(foliage: Foliage, cameras, images, alphas, view, *, visible=None, shade=None,
+                     kind: str = "cluster", tile: int | None = None, detail: float = 0.35, oblique: float = 0.3,
+                     masks=None, tolerance: float = 0.1, seed=0) -> tuple[np.ndarray, Foliage]:
+    """:func:`photo_leaf_atlas` over several photos: each card's tile is cut from its own view.
+
+    Parameters
+    ----------
+    foliage : Foliage
+        M cards in the cameras' world.
+    cameras : sequence of Camera
+        V cameras; camera k's image is ``images[k]``'s size.
+    images : sequence of ndarray, shape (H_k, W_k, 3), uint8
+    alphas : sequence of ndarray, shape (H_k, W_k), float in [0, 1]
+        Where each photo shows foliage.
+    view : array_like, shape (M,), int
+        The view each card's tile comes from (:func:`choose_views`).
+    visible, shade : array_like, shape (M,), optional
+        As :func:`photo_leaf_atlas`, each for the card's own view.
+    kind, tile, detail, oblique, seed
+        As :func:`photo_leaf_atlas`; ``tile`` defaults to the median card's size in its view's
+        pixels, as a power of two in [16, 32].
+    masks : sequence of ndarray, shape (H_k, W_k), bool, optional
+        The tree in each view: every texel is also carved against all of them
+        (:func:`carve_texels`), so the parts of a card that some views see through are transparent.
+    tolerance : float
+        Share of the views holding a texel that may see background there (:func:`carve_texels`).
+
+    Returns
+    -------
+    atlas : ndarray, shape (S, S, 4), uint8
+    foliage : Foliage
+        The cards with ``uv`` set to their tiles.
+
+    Examples
+    --------
+    >>> cams = [Camera(64, 64, 40.0, (0, 0, z), (0, 0, 0), (0, 1, 0)) for z in (10.0, -10.0)]
+    >>> f = Foliage([[0, 0, 1.0], [0, 0, -1.0]], [[0, 0, 1], [0, 0, -1]], [[0, 1, 0]] * 2, [1.0] * 2,
+    ...             [[1, 1, 1]] * 2)
+    >>> red = np.zeros((64, 64, 3), np.uint8); red[..., 0] = 200
+    >>> blue = np.zeros((64, 64, 3), np.uint8); blue[..., 2] = 200
+    >>> atlas, f2 = views_leaf_atlas(f, cams, [red, blue], [np.ones((64, 64))] * 2, [0, 1], tile=16)
+    >>> bool(atlas[:16, :16, 0].max() > 150), bool(atlas[:16, 16:32, 2].max() > 150)   # card 0 red, card 1 blue
+    (True, True)
+    """
+    if not isinstance(foliage, Foliage):
+        raise InputError(f"foliage: expected a Foliage, got {type(foliage).__name__}")
+    cameras, images, alphas = list(cameras), [np.asarray(i) for i in images], [np.asarray(a, np.float32) for a in alphas]
+    if not cameras or not len(cameras) == len(images) == len(alphas):
+        raise InputError(f"cameras, images, alphas: expected the same number (at least one), got {len(cameras)}, "
+                         f"{len(images)} and {len(alphas)}")
+    for k, (cam, img, al) in enumerate(zip(cameras, images, alphas)):
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise InputError(f"images[{k}]: expected an (H, W, 3) uint8 array, got {img.shape} {img.dtype}")
+        if al.shape != img.shape[:2] or img.shape[:2] != (cam.height, cam.width):
+            raise InputError(f"alphas[{k}], cameras[{k}]: expected the image's size {img.shape[:2]}, got "
+                             f"{al.shape} and {(cam.height, cam.width)}")
+    _check_tile_options(kind, detail, oblique)
+    m = len(foliage)
+    if m == 0:
+        return np.zeros((4, 4, 4), np.uint8), foliage
+    view = np.asarray(view, np.int64).reshape(-1)
+    if len(view) != m or view.min() < 0 or view.max() >= len(cameras):
+        raise InputError(f"view: expected {m} view indices in [0, {len(cameras)})")
+    vis = np.ones(m, bool) if visible is None else np.asarray(visible, bool).reshape(-1)
+    dark = np.ones(m, np.float32) if shade is None else np.asarray(shade, np.float32).reshape(-1)
+    if len(vis) != m or len(dark) != m or not np.all((dark >= 0) & (dark <= 1)):
+        raise InputError(f"visible, shade: expected {m} flags and {m} numbers in [0, 1]")
+    rng = as_rng(seed)
+    if tile is None:
+        px = np.empty(m)
+        for k in np.unique(view):
+            sel = view == k
+            depth = cameras[k].project(foliage.positions[sel])[:, 2]
+            px[sel] = foliage.size[sel] * cameras[k].focal / np.maximum(depth, 1e-9)
+        tile = int(np.clip(2 ** round(math.log2(max(float(np.median(px)), 1.0))), 16, 32))
+    tile = check_int(tile, "tile", 8, 128)
+    shapes = _tile_shapes(tile, kind, seed)
+    pick = rng.integers(0, len(shapes[0]), m)
+    tex = np.empty((m, tile, tile, 4), np.uint8)
+    for k in np.unique(view):
+        cards = np.flatnonzero(view == k)
+        tex[cards] = _card_tiles(foliage, cards, cameras[k], images[k], alphas[k], vis[cards], dark[cards], tile=tile,
+                                 oblique=oblique, shapes=shapes, pick=pick[cards], detail=detail)
+    if masks is not None:
+        tex[..., 3] *= carve_texels(foliage, cameras, masks, tile, tolerance=tolerance)
     atlas, rects = _pack(tex)
-    rect = rects[tile_of]
-    return atlas, foliage.with_colors(foliage.color, uv=rect)
+    return atlas, foliage.with_colors(foliage.color, uv=rects)
+
+
+def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: float = 0.1,
+                 chunk: int = 2048) -> np.ndarray:
+    """Which texels of each card lie inside every view's tree: the visual hull at the texels' resolution.
+
+    Texel ``(row t, column s)`` of a card stands for the point ``p + s size right - t size up``
+    (``s, t`` the texel centres in [-0.5, 0.5), the card's frame as
+    :func:`~treeform.geometry.leaf_cards` draws it). A texel is kept when it falls on the tree
+    mask in all but ``tolerance`` of the views whose image holds it (a mask's errors and
+    occluders are tolerated): a card on the visual hull of a porous crown keeps the parts
+    every photo sees as tree, and what some photos see through goes.
+
+    Parameters
+    ----------
+    foliage : Foliage
+        M cards.
+    cameras : sequence of Camera
+    masks : sequence of ndarray, shape (H_k, W_k), bool
+        The tree in each view (each camera's image size).
+    tile : int
+        Texels along a tile's edge.
+    tolerance : float in [0, 0.5)
+    chunk : int
+        Cards per batch (memory).
+
+    Returns
+    -------
+    ndarray, shape (M, tile, tile), uint8
+        1 where the texel is kept.
+
+    Examples
+    --------
+    A card facing +z (its texture's columns run along +x), seen from the front, where it is all
+    tree, and from behind, where the right half of the image (world -x) is background:
+
+    >>> cams = [Camera(64, 64, 40.0, (0, 0, 10.0), (0, 0, 0), (0, 1, 0)),
+    ...         Camera(64, 64, 40.0, (0, 0, -10.0), (0, 0, 0), (0, 1, 0))]
+    >>> f = Foliage([[0, 0, 0]], [[0, 0, 1]], [[0, 1, 0]], [2.0], [[1, 1, 1]])
+    >>> back = np.ones((64, 64), bool); back[:, 32:] = False
+    >>> carve_texels(f, cams, [np.ones((64, 64), bool), back], 4, tolerance=0.0)[0].tolist()
+    [[0, 0, 1, 1], [0, 0, 1, 1], [0, 0, 1, 1], [0, 0, 1, 1]]
+    """
+    from treeform.geometry.leaves import card_frames
+
+    cameras, masks = list(cameras), [np.asarray(mk, bool) for mk in masks]
+    if len(cameras) != len(masks):
+        raise InputError(f"masks: expected {len(cameras)} masks, got {len(masks)}")
+    if not 0.0 <= float(tolerance) < 0.5:
+        raise InputError(f"tolerance: expected a share in [0, 0.5), got {tolerance!r}")
+    tile = check_int(tile, "tile", 1, 128)
+    m = len(foliage)
+    keep = np.ones((m, tile, tile), np.uint8)
+    if m == 0:
+        return keep
+    _, up, right = card_frames(foliage)
+    g = ((np.arange(tile) + 0.5) / tile - 0.5).astype(np.float32)
+    # each view as a 3x3 map to (x, y, z) in its frame, its position, focal length and mask (flat)
+    views = [(np.stack(cam.axes()).astype(np.float32), np.asarray(cam.position, np.float32), np.float32(cam.focal),
+              mk.shape, mk.ravel()) for cam, mk in zip(cameras, masks)]
+    for lo in range(0, m, chunk):
+        sl = slice(lo, min(m, lo + chunk))
+        size = foliage.size[sl, None, None, None].astype(np.float32)
+        pts = (foliage.positions[sl, None, None, :].astype(np.float32)
+               + g[None, None, :, None] * size * right[sl, None, None, :].astype(np.float32)
+               - g[None, :, None, None] * size * up[sl, None, None, :].astype(np.float32)).reshape(-1, 3)
+        held = np.zeros(len(pts), np.int16)
+        tree = np.zeros(len(pts), np.int16)
+        for axes, pos, fl, (h, w), flat in views:
+            x, y, z = ((pts - pos) @ axes.T).T  # the camera's right, up and forward coordinates
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.floor(w / 2 + fl * x / z)
+                v = np.floor(h / 2 - fl * y / z)
+            inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (z > 0)
+            idx = np.where(inside, v * w + u, 0).astype(np.int64)
+            held += inside
+            tree += inside & flat[idx]
+        keep[sl] = (tree >= (1.0 - tolerance) * held).reshape(-1, tile, tile)
+    return keep

@@ -60,6 +60,28 @@ def test_model_matches_the_views(run):
     assert abs(bark.positions[:, 1].min()) < 0.02 * m["tree_height_m"]
 
 
+def test_leaves_wear_the_photos_crown(run):
+    """Each leaf card shows its own tile of the photos (seed 002 §6), cut by the views' foliage mattes."""
+    cap, res, out = run
+    assert res.config["leaf_texture"] == "photo"
+    f = res.foliage
+    assert f.uv is not None and len(np.unique(f.uv, axis=0)) == len(f)  # a tile per card
+    tex = next(p for p in res.mesh.parts if p.name == "leaves").material.texture
+    opaque = tex[..., 3] > 127
+    assert 0.2 < opaque.mean() < 0.95  # the mattes' gaps and the clusters' outlines are transparent
+    # the tiles carry the photos' leaf colours (the capture's dark oak crown), brightened by one gain
+    # that makes the lit model match the photos: the same chromaticity
+    from PIL import Image
+
+    from treeform.segment import segment
+
+    photo = np.asarray(Image.open(sorted((cap.out / "images").glob("*.jpg"))[0]).convert("RGB"))
+    want = np.median(photo[segment(photo, method="learned").foliage_mask], axis=0).astype(float)
+    got = np.median(tex[..., :3][opaque], axis=0).astype(float)
+    assert got.sum() >= want.sum()
+    assert np.abs(got / got.sum() - want / want.sum()).max() < 0.06, (got, want)
+
+
 def test_too_few_photos_is_one_clear_error(tmp_path):
     from PIL import Image
 

@@ -7,7 +7,10 @@ from dataclasses import asdict, dataclass
 from treeform._shared.checks import check_choice, check_height, check_int, check_positive
 from treeform._shared.errors import InputError
 
-__all__ = ["MultiviewConfig"]
+__all__ = ["MultiviewConfig", "LEAF_TEXTURES"]
+
+LEAF_TEXTURES = ("photo", "procedural")
+"""Leaf card textures of the multi-view route."""
 
 
 @dataclass
@@ -37,6 +40,9 @@ class MultiviewConfig:
     """Share of the views whose mask may miss a piece of the tree (occluders, segmentation errors)."""
     leaves: int = 15000
     """Leaf clusters (most on the crown's surface seen in the photos, the rest on the twigs inside)."""
+    leaf_texture: str = "photo"
+    """'photo': each leaf card shows the photo that sees it best, with that view's foliage matte as alpha
+    (the crown's texture and gaps); 'procedural': drawn leaf clusters tinted with the photos' colours."""
     lod: str = "medium"
     """Triangle budget (see treeform.geometry.LOD_PRESETS)."""
 
@@ -59,6 +65,7 @@ class MultiviewConfig:
         if not 0.0 <= float(self.tolerance) < 0.5:
             raise InputError(f"tolerance: expected a share in [0, 0.5), got {self.tolerance!r}")
         check_int(self.leaves, "leaves", 0, 1_000_000)
+        check_choice(self.leaf_texture, "leaf_texture", LEAF_TEXTURES)
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))
         return self
 

@@ -42,10 +42,20 @@ WOOD_VOTE = 0.25
 
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
+PHOTO_COVER = 0.29
+"""The same for a photo tile carved by the views (:data:`TEXEL_TOLERANCE`): the views' gaps cut it,
+so its cards are 1.5x larger (on the 24-view oak capture, novel-view IoU 0.689 at 1x, 0.716 at
+1.5x, 0.718 at 1.8x; BENCHMARKS.md)."""
 SHELL_SHARE = 0.9
 """Share of the leaf clusters placed on the crown's surface (the rest on the twigs inside)."""
 LEAF_SUPPORT = 0.92
 """A surface cell carries leaves when at least this share of the views that see it hold it."""
+TEXEL_TOLERANCE = 0.1
+"""Share of the views holding a leaf texel that may see background there before it is cut
+(:func:`~treeform.crown.photo_leaves.carve_texels`)."""
+TEXEL_DILATE = 1
+"""Pixels by which the views' tree masks grow before the texels are carved against them (the
+cameras' registration is good to about a pixel at the mattes' size)."""
 
 STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
 
@@ -323,18 +333,27 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         skeleton.meta.update({"method": "multiview", "visible_nodes": int(visible.n_nodes)})
     with timer.stage("leaves"):
         foliage = _leaves(carved, branch, skeleton, height, cfg, rng)
+        leaf_tex = None
+        if cfg.leaf_texture == "photo" and len(foliage):
+            foliage, leaf_tex = _photo_leaves(foliage, sfm, images, labels, rng, cfg.seed)
     with timer.stage("mesh"):
-        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], seed=cfg.seed)
+        mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex, seed=cfg.seed)
     with timer.stage("render"):
-        # the leaves' tints are the photos' colours, which already hold the day's light: lit again,
-        # they render darker than the photos. Scale them until the model, seen from the photos'
-        # cameras, has the photos' leaf colours (twice: the display encoding is not linear).
+        # the leaves' colours are the photos', which already hold the day's light: lit again, they
+        # render darker than the photos. Scale them (the tiles, or the cards' tints) until the model,
+        # seen from the photos' cameras, has the photos' leaf colours (twice: the display encoding is
+        # not linear).
         for _ in range(2):
             gain = _leaf_gain(mesh, sfm, images, labels)
             if gain is None or np.all(np.abs(gain - 1.0) < 0.03):
                 break
-            foliage = foliage.with_colors(np.clip(foliage.color * gain, 0.0, 1.0))
-            mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], seed=cfg.seed)
+            if leaf_tex is not None:
+                leaf_tex = leaf_tex.copy()
+                leaf_tex[..., :3] = np.clip(leaf_tex[..., :3] * gain, 0, 255).astype(np.uint8)
+            else:
+                foliage = foliage.with_colors(np.clip(foliage.color * gain, 0.0, 1.0))
+            mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex,
+                             seed=cfg.seed)
         preview, iou = _preview(mesh, sfm, images, labels)
     metrics = {
         "photos": len(views), "registered": sfm.n_cameras, "unregistered": list(sfm.unregistered),
@@ -357,19 +376,19 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     return result
 
 
-def _leaf_size(points: np.ndarray, n: int, height: float) -> float:
+def _leaf_size(points: np.ndarray, n: int, height: float, cover: float = COVER) -> float:
     """The card edge with which ``n`` clusters cover the crown's surface about once.
 
     The surface is about four times the crown's side view (a sphere's is), the side view is
     the mean area of the leaf cells seen along x and along z, and a cluster texture covers
-    about 65 % of its card; clipped to 0.8-8 % of the tree's height.
+    ``cover`` of its card; clipped to 0.8-8 % of the tree's height.
     """
     if len(points) == 0:
         return 0.02 * height
     g = height / 100.0
     cells = np.floor(points / g).astype(np.int64)
     side = 0.5 * (len(np.unique(cells[:, [0, 1]], axis=0)) + len(np.unique(cells[:, [2, 1]], axis=0))) * g * g
-    return float(np.clip(np.sqrt(4.0 * side / (COVER * n)), 0.008 * height, 0.08 * height))
+    return float(np.clip(np.sqrt(4.0 * side / (cover * n)), 0.008 * height, 0.08 * height))
 
 
 def _leaves(carved, branch, skeleton, height, cfg, rng):
@@ -388,7 +407,8 @@ def _leaves(carved, branch, skeleton, height, cfg, rng):
     from treeform.structures import Foliage
 
     leaf = ~branch
-    size = _leaf_size(carved.points[leaf], max(1, round(SHELL_SHARE * cfg.leaves)), height)
+    size = _leaf_size(carved.points[leaf], max(1, round(SHELL_SHARE * cfg.leaves)), height,
+                      PHOTO_COVER if cfg.leaf_texture == "photo" else COVER)
     crown_rgb = carved.colors[leaf] if leaf.any() else carved.colors
     base = np.median(crown_rgb, axis=0) / 255.0 if len(crown_rgb) else np.array([0.3, 0.45, 0.2])
     shell = np.flatnonzero(leaf & (carved.edge <= 0.5 * size) & (carved.support >= LEAF_SUPPORT))
@@ -411,6 +431,37 @@ def _leaves(carved, branch, skeleton, height, cfg, rng):
         col = crown_rgb[k] / 255.0 * rng.normal(1.0, 0.06, (len(foliage), 1))
         foliage = foliage.with_colors(np.clip(col, 0, 1))
     return foliage
+
+
+def _photo_leaves(foliage, sfm, images, labels, rng, seed):
+    """The leaf cards textured with the photos' own crown: each card's tile cut from the view that sees it best.
+
+    Seed 002 §6 takes its leaves from the photos. Every card is assigned the registered view
+    that sees it (not hidden behind other cards) and that it faces most
+    (:func:`~treeform.crown.photo_leaves.choose_views`); the cards a view sees turn to face it,
+    and the tile is the photo under the card with the view's foliage matte as alpha
+    (:func:`~treeform.crown.photo_leaves.views_leaf_atlas`), so the leaves carry the photos'
+    texture. Then every texel is carved against all the views' masks
+    (:func:`~treeform.crown.photo_leaves.carve_texels`): the visual hull at the texels'
+    resolution, so what some photos see through the crown is a gap from every side (on the
+    24-view oak capture the model's area beyond the true silhouette in novel views falls from
+    29 % to 22 %). Returns the cards (white tints, uv set) and the atlas.
+    """
+    import scipy.ndimage as ndi
+
+    from treeform.crown.photo_leaves import choose_views, face_camera, views_leaf_atlas
+
+    cams = [sfm.render_camera(k, scale=labels[k].shape[1] / sfm.sizes[k, 0]) for k in range(len(labels))]
+    masks = [lab > 0 for lab in labels]
+    view, visible, shade = choose_views(foliage, cams, masks, images)
+    for k in np.unique(view[visible]):
+        foliage = face_camera(foliage, cams[k], visible & (view == k), rng)
+    alphas = [ndi.gaussian_filter((lab == 1).astype(np.float32), 0.6) for lab in labels]
+    white = foliage.with_colors(np.ones((len(foliage), 3)))
+    atlas, foliage = views_leaf_atlas(white, cams, images, alphas, view, visible=visible, shade=shade, seed=seed,
+                                      masks=[ndi.binary_dilation(mk, iterations=TEXEL_DILATE) for mk in masks],
+                                      tolerance=TEXEL_TOLERANCE)
+    return foliage, atlas
 
 
 def _down_to_ground(skeleton):
