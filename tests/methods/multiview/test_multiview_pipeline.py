@@ -20,7 +20,7 @@ def run(gl, tmp_path_factory):
     base = tmp_path_factory.mktemp("mv")
     cap = synthetic_capture(base / "capture", views=24, size=480, species="oak", seed=0)
     res = reconstruct_multiview(cap.out / "images", out=base / "out", mask_size=320, leaves=1500, lod="low",
-                                segmenter="learned", seed=0, cells=200, surface_cells=100)
+                                segmenter="learned", seed=0, cells=200, surface_cells=100, leaf_texture="photo")
     return cap, res, base / "out"
 
 
@@ -94,7 +94,8 @@ def test_too_few_photos_is_one_clear_error(tmp_path):
 
 
 def test_user_mattes_replace_the_segmenter(run, tmp_path):
-    """With the capture's true mattes (--masks) the eye-height scale gives about the true height."""
+    """With the capture's true mattes (--masks) the eye-height scale gives about the true height
+    (and the default, procedural leaf clusters)."""
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
     cap, _, _ = run
@@ -107,6 +108,7 @@ def test_user_mattes_replace_the_segmenter(run, tmp_path):
     assert abs(res.metrics["tree_height_m"] / truth["height"] - 1) < 0.4, (res.metrics["tree_height_m"],
                                                                           res.metrics["sfm"])
     assert res.metrics["silhouette_iou_median"] > 0.3  # measured 0.37 here (320-px mattes); see the issue note
+    assert res.config["leaf_texture"] == "procedural" and res.foliage.uv is None  # drawn clusters, tinted
     # a folder without a photo's matte: one clear error, nothing written
     (tmp_path / "masks").mkdir()
     with pytest.raises(InputError, match="no mask for"):
