@@ -21,7 +21,7 @@ from treeform._shared.rng import as_rng
 from treeform.structures.camera import Camera
 from treeform.structures.foliage import Foliage
 
-__all__ = ["photo_leaf_atlas", "views_leaf_atlas", "choose_views", "face_camera", "camera_sees", "default_tile", "carve_texels"]
+__all__ = ["photo_leaf_atlas", "views_leaf_atlas", "choose_views", "face_camera", "camera_sees", "carve_texels"]
 
 _SHAPES = 4  # distinct cluster outlines; each also turned by 0/90/180/270 degrees and mirrored
 
@@ -282,7 +282,7 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     rng = as_rng(seed)
 
     if tile is None:
-        tile = default_tile(foliage, camera)
+        tile = _tile_size(_card_pixels(foliage, camera))
     tile = check_int(tile, "tile", 8, 128)
 
     # tiles: every card its own while they fit, else the hidden ones borrow a visible one's
@@ -309,11 +309,14 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
     return atlas, foliage.with_colors(foliage.color, uv=rect)
 
 
-def default_tile(foliage: Foliage, camera: Camera) -> int:
-    """Tile edge in texels for cards seen by ``camera``: the median card's size in its pixels, as a power of two in [16, 32]."""
-    c = camera.project(foliage.positions)
-    facing = foliage.size * camera.focal / np.maximum(c[:, 2], 1e-9)
-    return int(np.clip(2 ** round(math.log2(max(float(np.median(facing)), 1.0))), 16, 32))
+def _card_pixels(foliage: Foliage, camera: Camera) -> np.ndarray:
+    """(M,) each card's edge in ``camera``'s pixels, were it facing the camera."""
+    return foliage.size * camera.focal / np.maximum(camera.project(foliage.positions)[:, 2], 1e-9)
+
+
+def _tile_size(pixels: np.ndarray) -> int:
+    """Tile edge in texels: the median card's size in pixels, as a power of two in [16, 32]."""
+    return int(np.clip(2 ** round(math.log2(max(float(np.median(pixels)), 1.0))), 16, 32))
 
 
 def _card_tiles(foliage: Foliage, cards: np.ndarray, camera: Camera, image: np.ndarray, alpha: np.ndarray,
@@ -330,8 +333,7 @@ def _card_tiles(foliage: Foliage, cards: np.ndarray, camera: Camera, image: np.n
     n_tiles = len(cards)
     if n_tiles == 0:
         return np.zeros((0, tile, tile, 4), np.float32)
-    sub = Foliage(foliage.positions[cards], foliage.normals[cards], foliage.up[cards], foliage.size[cards],
-                  foliage.color[cards])
+    sub = foliage.subset(cards)
     # each card's centre and half-axes in photo pixels (an affine map: the camera is far away)
     _, up, right = card_frames(sub)
     half = 0.5 * sub.size[:, None]
@@ -526,10 +528,8 @@ def views_leaf_atlas(foliage: Foliage, cameras, images, alphas, view, *, visible
     if tile is None:
         px = np.empty(m)
         for k in np.unique(view):
-            sel = view == k
-            depth = cameras[k].project(foliage.positions[sel])[:, 2]
-            px[sel] = foliage.size[sel] * cameras[k].focal / np.maximum(depth, 1e-9)
-        tile = int(np.clip(2 ** round(math.log2(max(float(np.median(px)), 1.0))), 16, 32))
+            px[view == k] = _card_pixels(foliage.subset(view == k), cameras[k])
+        tile = _tile_size(px)
     tile = check_int(tile, "tile", 8, 128)
     shapes = _tile_shapes(tile, kind, seed)
     pick = rng.integers(0, len(shapes[0]), m)
@@ -599,9 +599,6 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
         return keep
     _, up, right = card_frames(foliage)
     g = ((np.arange(tile) + 0.5) / tile - 0.5).astype(np.float32)
-    # each view as a 3x3 map to (x, y, z) in its frame, its position, focal length and mask (flat)
-    views = [(np.stack(cam.axes()).astype(np.float32), np.asarray(cam.position, np.float32), np.float32(cam.focal),
-              mk.shape, mk.ravel()) for cam, mk in zip(cameras, masks)]
     for lo in range(0, m, chunk):
         sl = slice(lo, min(m, lo + chunk))
         size = foliage.size[sl, None, None, None].astype(np.float32)
@@ -610,14 +607,11 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
                - g[None, :, None, None] * size * up[sl, None, None, :].astype(np.float32)).reshape(-1, 3)
         held = np.zeros(len(pts), np.int16)
         tree = np.zeros(len(pts), np.int16)
-        for axes, pos, fl, (h, w), flat in views:
-            x, y, z = ((pts - pos) @ axes.T).T  # the camera's right, up and forward coordinates
-            with np.errstate(divide="ignore", invalid="ignore"):
-                u = np.floor(w / 2 + fl * x / z)
-                v = np.floor(h / 2 - fl * y / z)
-            inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (z > 0)
-            idx = np.where(inside, v * w + u, 0).astype(np.int64)
+        for cam, mk in zip(cameras, masks):
+            uvz = cam.project(pts, dtype=np.float32)
+            (h, w), u, v = mk.shape, np.floor(uvz[:, 0]), np.floor(uvz[:, 1])
+            inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
             held += inside
-            tree += inside & flat[idx]
+            tree += inside & mk.ravel()[np.where(inside, v * w + u, 0).astype(np.int64)]
         keep[sl] = (tree >= (1.0 - tolerance) * held).reshape(-1, tile, tile)
     return keep

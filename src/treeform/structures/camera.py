@@ -97,15 +97,16 @@ class Camera:
             [0, 0, -1, 0],
         ])
 
-    def project(self, points: np.ndarray) -> np.ndarray:
+    def project(self, points: np.ndarray, *, dtype=np.float64) -> np.ndarray:
         """World points (N, 3) -> (N, 3): pixel column u, pixel row v, depth along the view axis.
 
-        Pixel (0, 0) is the top-left corner of the image; pixel centres are at +0.5.
+        Pixel (0, 0) is the top-left corner of the image; pixel centres are at +0.5. ``dtype``
+        float32 halves the memory and time of projecting millions of points (texels).
         """
-        p = np.asarray(points, np.float64).reshape(-1, 3) - np.asarray(self.position)
-        r, u, f = self.axes()
+        p = np.asarray(points, dtype).reshape(-1, 3) - np.asarray(self.position, dtype)
+        r, u, f = (np.asarray(a, dtype) for a in self.axes())
         x, y, z = p @ r, p @ u, p @ f
-        fl = self.focal
+        fl = dtype(self.focal)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.stack([self.width / 2 + fl * x / z, self.height / 2 - fl * y / z, z], axis=1)
 
