@@ -94,6 +94,28 @@ def test_given_trunk_roots_the_paths(bare):
     assert np.hypot(*(sk.branches[0][0] - [200, 385])) < 3
 
 
+def test_the_root_is_the_trunks_foot_not_a_lower_twig(bare):
+    from treeform.crown.layout import tree_layout
+    from treeform.skeleton import trunk_foot
+    from treeform.structures import Segmentation
+
+    m, limbs = bare
+    low = m.view(np.uint8).copy()
+    cv2.line(low, (60, 200), (45, 399), 1, 2)  # a drooping twig from the left limb, below the trunk's foot
+    low[398:, 330:333] = 1  # and a speck the mask cut off, lower still
+    low = low.astype(bool)
+    assert low[399].any() and not low[395:, 195:206].all()
+    foot = trunk_foot(low, low)
+    assert abs(foot[0] - 200) <= 1 and 392 <= foot[1] <= 395  # the trunk is 9 px wide, its foot on row ~394
+    sk = wood_skeleton(low, low, levels=1)
+    assert np.hypot(*(sk.branches[0][0] - [200, 394])) < 4 and sk.branches[0][-1, 1] < 70
+    first = [b for b, o in zip(sk.branches, sk.order) if o == 1]
+    for name, poly in limbs.items():  # the limbs are still found from the right root
+        assert any(np.mean([_dist(p, poly[:, :]) for p in b[: len(b) // 2]]) < 6.0 for b in first), name
+    lab = np.where(low, 2, 0).astype(np.uint8)
+    assert abs(tree_layout(Segmentation(lab)).base[0] - 200.5) <= 1  # the route's trunk base too
+
+
 def test_draw_and_lift(bare):
     m, _ = bare
     sk = wood_skeleton(m, m)

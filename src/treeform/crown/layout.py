@@ -52,7 +52,8 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
 
     The crown is the foliage closed over small gaps, holes filled, keeping its largest
     component (the whole tree mask when there is almost no foliage, e.g. a bare tree).
-    The trunk base is the centre of the lowest tree rows; the trunk is then traced up
+    The trunk base is :func:`~treeform.skeleton.trunk_foot` (the bottom of the thickest wood
+    near the bottom of the tree, so a twig or a weeping curtain hanging lower is not taken); the trunk is then traced up
     through the wood pixels, row by row, while one run of wood at least half the trunk's
     width continues it; the trunk top is where it forks, thins or ends, and never lower
     than the crown's lowest row.
@@ -83,10 +84,12 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     if n == 0:
         raise NoTreeFoundError("no tree found: no crown region in the mask")
     crown = lab == (np.argmax(np.bincount(lab.ravel())[1:]) + 1)
-    # trunk base: centre of the tree pixels in the lowest 2 % of its rows
+    from treeform.skeleton.wood import trunk_foot
+
+    foot_col, bottom = trunk_foot(tree, seg.wood_mask)
+    base_col = foot_col + 0.5
     band = tree[max(top, bottom - max(1, size // 50)): bottom + 1]
     cols = np.nonzero(band.any(axis=0))[0]
-    base_col = float(np.nonzero(band)[1].mean()) + 0.5
     crown_rows = np.nonzero(crown.any(axis=1))[0]
     crown_bottom = int(crown_rows.max())
     # trunk: the wood region touching the base, else the tree pixels below the crown

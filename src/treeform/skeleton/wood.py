@@ -28,7 +28,7 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.skeleton.field import check_mask, work_scale
 from treeform.skeleton.foliage import MIN_PIXELS, Skeleton2D
 
-__all__ = ["wood_skeleton", "wood_fraction", "wood_visible", "WOOD_VISIBLE"]
+__all__ = ["trunk_foot", "wood_skeleton", "wood_fraction", "wood_visible", "WOOD_VISIBLE"]
 
 WOOD_VISIBLE = 0.05
 """Share of the tree's pixels that must be wood for its branches to count as visible: the
@@ -78,7 +78,8 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
         Wood pixels (trunk and branches); may be empty (then the crown's tips alone are used).
     trunk : array_like, shape (K, 2), optional
         Trunk polyline ``(x, y)`` from the base upward; its first point is the root of the
-        paths. None: the middle of the lowest tree pixels.
+        paths. None: the trunk's foot found in the mask (the bottom of the thickest wood in
+        the lowest 5 % of the tree, on its largest connected part).
     levels : int
         Branch orders to return (1..3) besides the trunk.
     max_side : int
@@ -157,14 +158,13 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
     cost[passable] = foliage_cost
     cost[ww] = 1.0 + _WOOD_GAIN / (0.5 + dt_wood[ww])  # cheapest along thick wood, along its middle
 
-    ys, xs = np.nonzero(mw)
-    y_top, y_bot = int(ys.min()), int(ys.max())
-    tree_h = max(float(y_bot - y_top), 1.0)
+    ys = np.nonzero(mw.any(axis=1))[0]
+    tree_h = max(float(ys.max() - ys.min()), 1.0)
     if trunk is not None:
         root = (trunk[0] + 0.5) * scale - 0.5
     else:
-        band = ys >= y_bot - max(1.0, 0.01 * tree_h)
-        root = np.array([xs[band].mean(), float(y_bot)])
+        col, row = trunk_foot(passable, ww, connected=True)
+        root = np.array([col, float(row)])
     root = _nearest_pixel(passable, root)
 
     mcp = MCP_Geometric(cost, fully_connected=True)
@@ -224,6 +224,60 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
 
 
 # ----------------------------------------------------------------------------- helpers
+
+def trunk_foot(tree: np.ndarray, wood: np.ndarray | None = None, *, connected: bool = False) -> tuple[float, int]:
+    """Pixel ``(column, row)`` of the trunk's foot in a tree mask.
+
+    In the lowest 5 % of the tree's rows the thickest wood (the thickest tree where no wood
+    shows there) is the trunk: a drooping twig or a weeping curtain may hang lower than the
+    trunk's foot, but it is thinner (one hanging lower than 5 % of the height is taken for the
+    foot: a wider band would take a fork's thick junction for the trunk). The column is the middle of that thickest ridge, the row
+    the lowest tree pixel within its half-width (plus two pixels) of it.
+
+    Parameters
+    ----------
+    tree : ndarray, shape (H, W), bool
+        Tree mask (not empty).
+    wood : ndarray, shape (H, W), bool, optional
+        Wood pixels.
+    connected : bool
+        Only the largest 8-connected part of the tree counts (for paths that must reach the
+        whole crown from the foot). Otherwise every part does: a photo's mask may lose the
+        trunk's middle (a bare tree against branches behind it) and keep its foot.
+
+    Returns
+    -------
+    tuple
+        ``(column, row)``: a column (float, pixel indices) and a row (int).
+
+    Examples
+    --------
+    >>> t = np.zeros((100, 30), bool); t[5:90, 13:17] = True  # a trunk, its foot on row 89
+    >>> t[50:92, 24] = True                                   # a hanging twig, lower
+    >>> trunk_foot(t)
+    (14.5, 89)
+    """
+    tree = np.asarray(tree, bool)
+    comp = tree
+    if connected:
+        lab, n = ndi.label(tree, _EIGHT)
+        if n > 1:
+            comp = lab == 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
+    ys, xs = np.nonzero(comp)
+    if len(ys) == 0:
+        raise NoTreeFoundError("no tree found: the tree mask is empty")
+    size = int(ys.max() - ys.min()) + 1
+    band = ys >= ys.max() - max(1.0, 0.05 * size)
+    w = comp & np.asarray(wood, bool) if wood is not None else None
+    base = w if w is not None and w[ys[band], xs[band]].any() else comp
+    half = ndi.distance_transform_edt(base)[ys[band], xs[band]]
+    k = int(np.argmax(half))
+    x0 = xs[band][k]
+    ridge = (half >= half[k] - 0.5) & (np.abs(xs[band] - x0) <= half[k])
+    col = float(xs[band][ridge].mean())
+    near = band & (np.abs(xs - col) <= half[k] + 2)
+    return col, int(ys[near].max())
+
 
 def _nearest_pixel(mask: np.ndarray, p: np.ndarray) -> np.ndarray:
     """(row, col) of the ``mask`` pixel nearest to the point ``p = (x, y)``."""
