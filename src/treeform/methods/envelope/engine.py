@@ -5,7 +5,8 @@ forest renderer (:mod:`treeform.methods.envelope.forest`) draws into plain glTF:
 
 * ``lod0.glb`` – the full mesh (the tree's own ``tree.glb``);
 * ``lod1.glb`` – the billboard cloud: two crossed leaflet quads on each of the 144 branch
-  points (seed 001 §4.2; a static quad cannot face the camera), tinted with the colour cubemap
+  points (seed 001 §4.2; a static quad cannot face the camera), each leaf outside the crown's
+  RDM cut out of its quad's tile (the paper's per-leaf clipping, baked: the quads do not move), tinted with the colour cubemap
   in its direction, unlit (``KHR_materials_unlit``, the renderer's mean lighting baked in),
   over the trunk and limbs (``wood.glb``, lit);
 * ``lod2.glb`` – impostor cards: three vertical planes through the crown's axis, 60° apart,
@@ -26,7 +27,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 
-__all__ = ["CARD_VIEWS", "cloud_lod_mesh", "engine_writers", "forest_glb", "impostor_cards", "mean_lighting"]
+__all__ = ["CARD_VIEWS", "CLOUD_TILE", "cloud_lod_mesh", "engine_writers", "forest_glb", "impostor_cards", "mean_lighting"]
 
 CARD_VIEWS = 6
 """Sides of the impostor cards: three planes, both faces of each (every 60°)."""
@@ -123,28 +124,49 @@ def impostor_cards(imp, *, size: int = 256, lighting=None):
     return Mesh([part])
 
 
-def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0):
-    """The billboard cloud as static geometry: two crossed quads per branch point.
+CLOUD_TILE = 48
+"""Edge in texels of one quad's tile in the billboard cloud's atlas (288 tiles with their borders: 884
+texels, in a 1,024-texel square). 64 draws the same silhouettes (IoU against the mesh within 0.001) in a 30 % larger GLB."""
 
-    Each point gets two vertical quads at right angles, turned about +Y by a random angle,
-    ``0.7 x`` the forest renderer's billboard edge (static quads are not clipped to the RDM, so
-    they are kept inside it). The texture is the leaflet's brightness (its AO included); each
-    quad's vertex colour is the colour cubemap in the point's direction times
-    :func:`mean_lighting`, so the unlit cloud matches lit meshes.
+
+def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE):
+    """The billboard cloud as static geometry: two crossed quads per branch point, clipped per leaf.
+
+    Each point gets two vertical quads at right angles, turned about +Y by a random angle, of
+    the forest renderer's billboard edge. An engine cannot clip leaves in a shader, but a static
+    quad's leaves do not move: each leaf's centre (the leaflet's centroid channel) is placed on
+    its quad and tested against the radial distance map once, and the leaves outside the crown
+    are cut out of that quad's own tile of an atlas, whole (seed 001 §4.2's clipping, baked). The
+    texture is the leaflet's brightness (its AO included); each quad's vertex colour is the
+    colour cubemap in the point's direction times :func:`mean_lighting`, so the unlit cloud
+    matches lit meshes.
+
+    Parameters
+    ----------
+    imp : Impostor
+    lighting : Lighting, optional
+    seed : int
+        The quads' turns.
+    tile : int
+        Edge of one quad's tile in texels (8..512).
 
     Returns
     -------
     Mesh
-        One part, 4 triangles a point, MASK, double-sided.
+        One part, 4 triangles a point, MASK, double-sided, an atlas of one tile a quad.
     """
+    import cv2
+
+    from treeform._shared.checks import check_int
     from treeform._shared.rng import as_rng
     from treeform.structures.mesh import Material, Mesh, MeshPart
     from treeform.structures.rdm import direction_to_texel
 
+    tile = check_int(tile, "tile", 8, 512)
     rng = as_rng(seed)
     pts = np.asarray(imp.cloud_points, np.float64)
     n = len(pts)
-    s = 0.5 * 0.7 * float(imp.cloud_size)
+    s = 0.5 * float(imp.cloud_size)
     leaf = imp.leaflets
     rgba = np.asarray(leaf.rgba, np.uint8)
     luma = rgba[..., :3].astype(np.float64) @ [0.299, 0.587, 0.114]
@@ -154,18 +176,44 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0):
     ref = float(np.percentile(shade[opaque], 90)) if opaque.any() else 255.0
     grey = np.clip(shade / max(ref, 1.0) * 255.0, 0, 255).astype(np.uint8)
     tex = _bleed(np.dstack([grey, grey, grey, rgba[..., 3]]))
+    tex = cv2.resize(tex, (tile, tile), interpolation=cv2.INTER_AREA)
+    # each texel's leaf centre on the quad, (u, v) in [0, 1] (a branch texel: itself); nearest, never blended
+    cen = cv2.resize(np.asarray(leaf.centroid, np.uint8)[..., :2], (tile, tile), interpolation=cv2.INTER_NEAREST)
+    cu, cv_ = cen[..., 0].astype(np.float64) / 255.0, cen[..., 1].astype(np.float64) / 255.0
     d = pts - np.asarray(imp.rdm.center)
     f, r, c = direction_to_texel(d, imp.color.shape[1])
     col = imp.color[f, r, c].astype(np.float64) / 255.0 * mean_lighting(lighting)
     yaw = rng.uniform(0, np.pi, n)
+    up = np.array([0.0, 1.0, 0.0])
+    q_total = 2 * n
+    grid = int(np.ceil(np.sqrt(q_total)))
+    pad = 2  # transparent texels around each tile: no neighbour bleeds in through filtering
+    cell = tile + 2 * pad
+    side = 1 << int(np.ceil(np.log2(grid * cell)))  # a power of two: mip chains everywhere (WebGL 1 too)
+    atlas = np.zeros((side, side, 4), np.uint8)
     pos, uv, nrm, colors = [], [], [], []
-    for turn in (0.0, 0.5 * np.pi):
+    corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    for t, turn in enumerate((0.0, 0.5 * np.pi)):
         a = yaw + turn
         right = np.stack([np.cos(a), np.zeros(n), -np.sin(a)], 1)
         normal = np.stack([np.sin(a), np.zeros(n), np.cos(a)], 1)
-        for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-            pos.append(pts + s * (sx * right + sy * np.array([0.0, 1.0, 0.0])))
-            uv.append(np.tile([0.5 + 0.5 * sx, 0.5 - 0.5 * sy], (n, 1)))
+        # the leaves' centres in the tree's frame, (n, tile, tile, 3); kept where inside the crown
+        centre = pts[:, None, None, :] + 2 * s * ((cu - 0.5)[None, ..., None] * right[:, None, None, :]
+                                                  + (0.5 - cv_)[None, ..., None] * up)
+        keep = imp.rdm.contains(centre.reshape(-1, 3)).reshape(n, tile, tile)
+        for i in range(n):
+            k = t * n + i
+            gy, gx = divmod(k, grid)
+            y0, x0 = gy * cell + pad, gx * cell + pad
+            atlas[y0:y0 + tile, x0:x0 + tile, :3] = tex[..., :3]
+            atlas[y0:y0 + tile, x0:x0 + tile, 3] = np.where(keep[i], tex[..., 3], 0)
+        k = t * n + np.arange(n)
+        gy, gx = np.divmod(k, grid)
+        u0, v0 = (gx * cell + pad) / atlas.shape[1], (gy * cell + pad) / atlas.shape[0]
+        du, dv = tile / atlas.shape[1], tile / atlas.shape[0]
+        for sx, sy in corners:
+            pos.append(pts + s * (sx * right + sy * up))
+            uv.append(np.column_stack([u0 + du * (0.5 + 0.5 * sx), v0 + dv * (0.5 - 0.5 * sy)]))
             nrm.append(normal)
             colors.append(np.column_stack([col, np.ones(n)]))
     # vertex index = corner * (2n) + quad, quads = (turn, point)
@@ -174,11 +222,11 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0):
     uv = np.concatenate([np.stack(uv[0:4]), np.stack(uv[4:8])], axis=1).reshape(-1, 2)
     nrm = np.concatenate([np.stack(nrm[0:4]), np.stack(nrm[4:8])], axis=1).reshape(-1, 3)
     colors = np.concatenate([np.stack(colors[0:4]), np.stack(colors[4:8])], axis=1).reshape(-1, 4)
-    q = np.arange(2 * n)
-    corner = [k * 2 * n + q for k in range(4)]
+    q = np.arange(q_total)
+    corner = [k * q_total + q for k in range(4)]
     idx = np.concatenate([np.stack([corner[0], corner[1], corner[2]], 1), np.stack([corner[0], corner[2], corner[3]], 1)])
-    mat = Material(name="billboard_cloud", texture=tex, alpha_mode="MASK", alpha_cutoff=0.5, double_sided=True,
-                   roughness=1.0, metallic=0.0)
+    mat = Material(name="billboard_cloud", texture=_bleed(atlas), alpha_mode="MASK", alpha_cutoff=0.5,
+                   double_sided=True, roughness=1.0, metallic=0.0)
     part = MeshPart(pos.astype(np.float32), nrm.astype(np.float32), uv.astype(np.float32),
                     np.clip(colors, 0, 1).astype(np.float32), idx.astype(np.uint32), mat)
     part.name = "billboard_cloud"
