@@ -138,8 +138,8 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE)
     its quad and tested against the radial distance map once, and the leaves outside the crown
     are cut out of that quad's own tile of an atlas, whole (seed 001 §4.2's clipping, baked). The
     texture is the leaflet's brightness (its AO included); each quad's vertex colour is the
-    colour cubemap in the point's direction times :func:`mean_lighting`, so the unlit cloud
-    matches lit meshes.
+    colour cubemap in the point's direction times :func:`mean_lighting`, over the leaves' mean
+    brightness, so the unlit cloud matches lit meshes (and the impostor cards after it).
 
     Parameters
     ----------
@@ -182,7 +182,10 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE)
     cu, cv_ = cen[..., 0].astype(np.float64) / 255.0, cen[..., 1].astype(np.float64) / 255.0
     d = pts - np.asarray(imp.rdm.center)
     f, r, c = direction_to_texel(d, imp.color.shape[1])
-    col = imp.color[f, r, c].astype(np.float64) / 255.0 * mean_lighting(lighting)
+    # the texture holds the brightness over its 90th percentile; the colour is scaled back by the
+    # leaves' mean over it, so the cloud's mean colour is the cubemap's (as the forest shader's tint)
+    gain = ref / max(float(shade[opaque].mean()), 1.0) if opaque.any() else 1.0
+    col = imp.color[f, r, c].astype(np.float64) / 255.0 * mean_lighting(lighting) * gain
     yaw = rng.uniform(0, np.pi, n)
     up = np.array([0.0, 1.0, 0.0])
     q_total = 2 * n
