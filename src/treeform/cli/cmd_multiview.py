@@ -42,6 +42,8 @@ def multiview(
                f"{m['nodes']} branch nodes ({m['visible_nodes']} seen), {m['leaves']} leaves, "
                f"silhouette IoU {m['silhouette_iou_median']:.2f} (median over the views), "
                f"{m['total_seconds']:.1f} s -> {out}")
+    if m.get("scale_warning"):
+        typer.echo(f"warning: {m['scale_warning']}", err=True)
     if impostor:
         write_impostor(out, seed)
     if report:

@@ -52,6 +52,10 @@ def test_model_matches_the_views(run):
     truth = json.loads((cap.out / "truth" / "meta.json").read_text())
     # metric scale from the eye height alone: a sanity bound (factor 2; measured 1.1-1.7x on this capture)
     assert 0.5 < m["tree_height_m"] / truth["height"] < 2.0, (m["tree_height_m"], truth["height"])
+    # ... resting on a ground of enough points that nothing is said (5-13 points: the height was 0.2-2.4x)
+    from treeform.methods.multiview.pipeline import MIN_GROUND_POINTS
+
+    assert m["sfm"]["frame"]["ground_inliers"] >= MIN_GROUND_POINTS and m["scale_warning"] is None
     assert m["silhouette_iou_median"] > 0.15  # far from the issue's 0.8: see the issue note
     assert m["visible_nodes"] > 5 and res.skeleton.n_nodes > m["visible_nodes"]  # hidden branches grown
     # the tree stands on the ground at the origin (its root was 1.7 m up where the mattes lost the foot)

@@ -35,7 +35,7 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.methods.multiview.config import MultiviewConfig
 
-__all__ = ["STAGES", "MultiviewResult", "reconstruct_multiview"]
+__all__ = ["MIN_GROUND_POINTS", "STAGES", "MultiviewResult", "reconstruct_multiview", "scale_warning"]
 
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
@@ -56,6 +56,31 @@ TEXEL_TOLERANCE = 0.1
 TEXEL_DILATE = 1
 """Pixels by which the views' tree masks grow before the texels are carved against them (the
 cameras' registration is good to about a pixel at the mattes' size)."""
+
+MIN_GROUND_POINTS = 20
+"""SfM ground inliers under which the eye-height scale is called unreliable. Measured (BENCHMARKS.md,
+multi-view): 4-13 inliers on captures whose height came out 0.23-2.4x the truth, 22 on one within 15 %."""
+
+
+def scale_warning(frame: dict, height_given: bool) -> str | None:
+    """One line for the user when the metric scale rests on a weak ground plane, else None.
+
+    ``frame`` is :func:`~treeform.sfm.to_tree_frame`'s ``meta["frame"]``; with ``--height`` the
+    ground does not set the scale and nothing is said.
+
+    Examples
+    --------
+    >>> scale_warning({"ground_inliers": 5}, False)[:33]
+    'the metric scale rests on a groun'
+    >>> scale_warning({"ground_inliers": 5}, True) is None, scale_warning({"ground_inliers": 40}, False) is None
+    (True, True)
+    """
+    n = frame.get("ground_inliers")
+    if height_given or n is None or n >= MIN_GROUND_POINTS:
+        return None
+    return (f"the metric scale rests on a ground plane through {n} SfM points (under {MIN_GROUND_POINTS}): "
+            "the tree's height may be off by a factor of two or more; give --height for a reliable scale")
+
 
 STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
 
@@ -361,6 +386,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
         "leaves": len(foliage), "triangles": mesh.n_triangles, "tree_height_m": round(float(height), 4),
         "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
+        "scale_warning": scale_warning(sfm.meta.get("frame", {}), cfg.height is not None),
         "silhouette_iou_median": round(float(np.median(iou)), 4) if len(iou) else None,
         "silhouette_iou_min": round(float(np.min(iou)), 4) if len(iou) else None,
         "sfm": sfm.meta,
