@@ -53,10 +53,10 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     The crown is the foliage closed over small gaps, holes filled, keeping its largest
     component (the whole tree mask when there is almost no foliage, e.g. a bare tree).
     The trunk base is :func:`~treeform.skeleton.trunk_foot` (the bottom of the thickest wood
-    near the bottom of the tree, so a twig or a weeping curtain hanging lower is not taken); the trunk is then traced up
-    through the wood pixels, row by row, while one run of wood at least half the trunk's
-    width continues it; the trunk top is where it forks, thins or ends, and never lower
-    than the crown's lowest row.
+    near the bottom of the tree, so a twig or a weeping curtain hanging lower is not taken);
+    the trunk is then traced up through the wood pixels, row by row, while one run of wood at
+    least half the trunk's width continues it; the trunk top is where it forks, thins or ends,
+    and never lower than the crown's lowest row.
 
     Examples
     --------

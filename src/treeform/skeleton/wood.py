@@ -231,8 +231,9 @@ def trunk_foot(tree: np.ndarray, wood: np.ndarray | None = None, *, connected: b
     In the lowest 5 % of the tree's rows the thickest wood (the thickest tree where no wood
     shows there) is the trunk: a drooping twig or a weeping curtain may hang lower than the
     trunk's foot, but it is thinner (one hanging lower than 5 % of the height is taken for the
-    foot: a wider band would take a fork's thick junction for the trunk). The column is the middle of that thickest ridge, the row
-    the lowest tree pixel within its half-width (plus two pixels) of it.
+    foot: a wider band would take a fork's thick junction for the trunk). The column is the
+    middle of that thickest ridge, the row the lowest tree pixel within its half-width (plus two
+    pixels) of it.
 
     Parameters
     ----------

@@ -6,9 +6,9 @@ forest renderer (:mod:`treeform.methods.envelope.forest`) draws into plain glTF:
 * ``lod0.glb`` – the full mesh (the tree's own ``tree.glb``);
 * ``lod1.glb`` – the billboard cloud: two crossed leaflet quads on each of the 144 branch
   points (seed 001 §4.2; a static quad cannot face the camera), each leaf outside the crown's
-  RDM cut out of its quad's tile (the paper's per-leaf clipping, baked: the quads do not move), tinted with the colour cubemap
-  in its direction, unlit (``KHR_materials_unlit``, the renderer's mean lighting baked in),
-  over the trunk and limbs (``wood.glb``, lit);
+  RDM cut out of its quad's tile (the paper's per-leaf clipping, baked: the quads do not move),
+  tinted with the colour cubemap in its direction, unlit (``KHR_materials_unlit``, the
+  renderer's mean lighting baked in), over the trunk and limbs (``wood.glb``, lit);
 * ``lod2.glb`` – impostor cards: three vertical planes through the crown's axis, 60° apart,
   each side textured with the relief-mapped RDM drawn from the direction it faces (six views
   in one atlas; seed 001 §4.1's renderer bakes them), unlit, alpha-tested;
@@ -27,7 +27,8 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 
-__all__ = ["CARD_VIEWS", "CLOUD_TILE", "cloud_lod_mesh", "engine_writers", "forest_glb", "impostor_cards", "mean_lighting"]
+__all__ = ["CARD_VIEWS", "CLOUD_TILE", "cloud_lod_mesh", "engine_writers", "forest_glb", "impostor_cards",
+           "mean_lighting"]
 
 CARD_VIEWS = 6
 """Sides of the impostor cards: three planes, both faces of each (every 60°)."""
@@ -126,7 +127,8 @@ def impostor_cards(imp, *, size: int = 256, lighting=None):
 
 CLOUD_TILE = 48
 """Edge in texels of one quad's tile in the billboard cloud's atlas (288 tiles with their borders: 884
-texels, in a 1,024-texel square). 64 draws the same silhouettes (IoU against the mesh within 0.001) in a 30 % larger GLB."""
+texels, in a 1,024-texel square). 64 draws the same silhouettes (IoU against the mesh within 0.001)
+in a 30 % larger GLB."""
 
 
 def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE):
@@ -196,6 +198,8 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE)
     atlas = np.zeros((side, side, 4), np.uint8)
     pos, uv, nrm, colors = [], [], [], []
     corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    cells = np.zeros((grid * grid, cell, cell, 4), np.uint8)  # quad k's tile is cell k, row by row
+    cells[:q_total, pad:pad + tile, pad:pad + tile, :3] = tex[..., :3]
     for t, turn in enumerate((0.0, 0.5 * np.pi)):
         a = yaw + turn
         right = np.stack([np.cos(a), np.zeros(n), -np.sin(a)], 1)
@@ -204,12 +208,7 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE)
         centre = pts[:, None, None, :] + 2 * s * ((cu - 0.5)[None, ..., None] * right[:, None, None, :]
                                                   + (0.5 - cv_)[None, ..., None] * up)
         keep = imp.rdm.contains(centre.reshape(-1, 3)).reshape(n, tile, tile)
-        for i in range(n):
-            k = t * n + i
-            gy, gx = divmod(k, grid)
-            y0, x0 = gy * cell + pad, gx * cell + pad
-            atlas[y0:y0 + tile, x0:x0 + tile, :3] = tex[..., :3]
-            atlas[y0:y0 + tile, x0:x0 + tile, 3] = np.where(keep[i], tex[..., 3], 0)
+        cells[t * n:(t + 1) * n, pad:pad + tile, pad:pad + tile, 3] = np.where(keep, tex[..., 3], 0)
         k = t * n + np.arange(n)
         gy, gx = np.divmod(k, grid)
         u0, v0 = (gx * cell + pad) / atlas.shape[1], (gy * cell + pad) / atlas.shape[0]
@@ -228,6 +227,8 @@ def cloud_lod_mesh(imp, *, lighting=None, seed: int = 0, tile: int = CLOUD_TILE)
     q = np.arange(q_total)
     corner = [k * q_total + q for k in range(4)]
     idx = np.concatenate([np.stack([corner[0], corner[1], corner[2]], 1), np.stack([corner[0], corner[2], corner[3]], 1)])
+    atlas[:grid * cell, :grid * cell] = cells.reshape(grid, grid, cell, cell, 4).transpose(0, 2, 1, 3, 4) \
+        .reshape(grid * cell, grid * cell, 4)
     mat = Material(name="billboard_cloud", texture=_bleed(atlas), alpha_mode="MASK", alpha_cutoff=0.5,
                    double_sided=True, roughness=1.0, metallic=0.0)
     part = MeshPart(pos.astype(np.float32), nrm.astype(np.float32), uv.astype(np.float32),
