@@ -56,6 +56,8 @@ VALID = {
     ("eval", "--viewer", "0"): "no case in the 3D viewer",
     ("forest", "--switch-distance", "0"): "every tree a relief impostor",
     ("forest", "--switch-distance", "1e12"): "every tree a billboard cloud",
+    ("forest", "--card-px", "0"): "0 = no card tier (documented)",
+    ("forest", "--card-px", "1e12"): "every far tree an impostor card",
 }
 
 

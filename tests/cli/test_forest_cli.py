@@ -43,7 +43,9 @@ def test_forest_with_baseline(species, gl, tmp_path):
                                                "config.json", "forest.glb"}
     t = json.loads((out / "timing.json").read_text())
     for f in t["per_frame"]:
-        assert f["near"] + f["far"] == f["visible"] and 0 < f["near"] < f["visible"] <= 600
+        # crowns under 32 px on screen (most far trees in a 192 x 108 frame) are impostor cards
+        assert f["near"] + f["far"] + f["cards"] == f["visible"] and 0 < f["near"] < f["visible"] <= 600
+        assert f["cards"] > f["far"]
         assert 16 * f["near"] <= f["billboards"] <= 144 * f["near"]
         assert f["ms"] > 0 and f["baseline_ms"] > 0
     assert t["speedup"] == pytest.approx(t["baseline_ms_per_frame"] / t["ms_per_frame"], rel=0.02)
@@ -97,6 +99,21 @@ def test_forest_with_baseline(species, gl, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert np.array_equal(np.load(tmp_path / "again" / "instances.npy"), inst)
     assert (tmp_path / "again" / "frames" / "frame_001.png").read_bytes() == (out / "frames" / "frame_001.png").read_bytes()
+    # without the card tier every far tree is marched; the cards stand in for those crowns closely
+    proc = cli(*args[:4], tmp_path / "relief", *args[5:], "--card-px", "0")
+    assert proc.returncode == 0, proc.stderr
+    t0 = json.loads((tmp_path / "relief" / "timing.json").read_text())
+    assert all(f["cards"] == 0 and f["near"] + f["far"] == f["visible"] for f in t0["per_frame"])
+    mem = json.loads((out / "timing.json").read_text())["memory_per_species_bytes"]
+    assert "impostor_cards" in mem["oak"]
+    assert "impostor_cards" not in t0["memory_per_species_bytes"]["oak"]
+    for k in range(2):
+        cards = np.asarray(Image.open(out / "frames" / f"frame_{k:03d}.png"))
+        relief = np.asarray(Image.open(tmp_path / "relief" / "frames" / f"frame_{k:03d}.png"))
+        a, b = _trees(cards), _trees(relief)
+        assert (a & b).sum() / (a | b).sum() > 0.85
+        ratio = cards[..., :3][a & b].astype(float).mean(0) / relief[..., :3][a & b].astype(float).mean(0)
+        assert np.all(np.abs(ratio - 1) < 0.12), ratio
 
 
 def test_forest_page_in_headless_chromium(species, gl, tmp_path, browser):

@@ -18,6 +18,8 @@ def forest_cmd(
     area: str = typer.Option("400x400", "--area", help="Ground width x depth in metres, e.g. 2000x2000."),
     switch_distance: float = typer.Option(200.0, "--switch-distance", help="LoD switch d in metres: billboard "
                                           "clouds nearer, relief impostors beyond."),
+    card_px: float = typer.Option(32.0, "--card-px", help="Far crowns narrower than this many pixels on screen are "
+                                  "drawn as impostor cards instead of the relief march (0: the relief for all)."),
     frames: int = typer.Option(4, "--frames", help="Frames of the fly-through."),
     size: str = typer.Option("1920x1080", "--size", help="Frame size in pixels, WxH."),
     baseline: bool = typer.Option(False, "--baseline", help="Also draw every frame with full meshes (tree.glb) and "
@@ -32,7 +34,7 @@ def forest_cmd(
     from treeform.methods.envelope.forest import FOREST_STAGES, render_forest
 
     res = run_api(render_forest, species_dir, out=out, trees=trees, area=area, switch_distance=switch_distance,
-                  frames=frames, size=size, baseline=baseline, glb=glb, html=html, seed=seed, stages=FOREST_STAGES,
+                  frames=frames, size=size, card_px=card_px, baseline=baseline, glb=glb, html=html, seed=seed, stages=FOREST_STAGES,
                   inputs=[("--species-dir", species_dir)])
     t = res.timing
     line = (f"forest of {len(res.instances)} trees, {t['frames']} frames of {t['size'][0]}x{t['size'][1]}: "

@@ -26,7 +26,7 @@ from treeform.render.result import RenderResult
 from treeform.render.shaders import YAW_GLSL
 from treeform.structures.camera import Camera
 
-__all__ = ["ReliefPass", "render_rdm_impostor"]
+__all__ = ["ReliefPass", "relief_bounds", "render_rdm_impostor"]
 
 _VS = "#version 330\n" + YAW_GLSL + """
 uniform mat4 u_view;
@@ -54,6 +54,8 @@ uniform vec3 u_eye;
 uniform vec3 u_center;
 uniform vec3 u_lo;
 uniform vec3 u_hi;
+uniform float u_rmax;       // the RDM's largest and smallest radius: every ray meets its surface between
+uniform float u_rmin;       // the sphere of the one and the sphere of the other
 uniform vec3 u_light;       // toward the key light (world), and the Lighting's colours
 uniform vec3 u_key;
 uniform vec3 u_sky;
@@ -90,6 +92,17 @@ void main() {
     vec3 tmin = min(ta, tb), tmax = max(ta, tb);
     float t0 = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
     float t1 = min(min(tmax.x, tmax.y), tmax.z);
+    // empty-space skipping: the surface lies between the spheres of radius u_rmax and u_rmin about the
+    // centre, so a ray that misses the outer one is done, and one that meets the inner one has hit by then
+    vec3 oc = eye - u_center;
+    float bq = dot(oc, dir), cq = dot(oc, oc);
+    float outer = bq * bq - cq + u_rmax * u_rmax;
+    if (outer <= 0.0) discard;
+    float so = sqrt(outer);
+    t0 = max(t0, -bq - so);
+    t1 = min(t1, -bq + so);
+    float inner = bq * bq - cq + u_rmin * u_rmin;
+    if (inner > 0.0) t1 = min(t1, max(-bq - sqrt(inner), t0) + 1e-3 * u_rmin);
     if (t1 <= t0) discard;
     float dt = (t1 - t0) / float(u_steps);
     float prev = t0;
@@ -126,6 +139,20 @@ void main() {
     f_depth = vec4(-view.z, u_id, 0.0, 1.0);
 }
 """
+
+def relief_bounds(rdm) -> tuple:
+    """What the relief march of ``rdm`` is bounded by: ``(lo, hi, rmin, rmax)``.
+
+    ``lo`` / ``hi`` (3,) are the crown's box, padded by 0.1 % (the geometry drawn); ``rmin`` /
+    ``rmax`` the radii of the spheres about the centre that lie inside / around the crown
+    surface (the RDM's smallest and largest radius, a hair inside / outside), between which
+    every ray meets it: the shaders skip the empty space outside them.
+    """
+    lo, hi = rdm.bounds()
+    pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
+    radii = np.asarray(rdm.radii, np.float64)
+    return lo - pad, hi + pad, float(max(radii.min(), 0.0)) * 0.999, float(radii.max()) * (1 + 1e-4) + 1e-6
+
 
 _BOX = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
@@ -197,9 +224,7 @@ class ReliefPass(GLResources):
         self.part_id = int(part_id)
         self.front = front
         self.instances = np.zeros((0, 6), np.float32)
-        lo, hi = rdm.bounds()
-        pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
-        self.lo, self.hi = lo - pad, hi + pad
+        self.lo, self.hi, self._rmin, self._rmax = relief_bounds(rdm)
         corners = np.array([[x, y, z] for x in (self.lo[0], self.hi[0]) for y in (self.lo[1], self.hi[1])
                             for z in (self.lo[2], self.hi[2])], np.float32)
         self.ctx = ctx = get_context()
@@ -246,6 +271,8 @@ class ReliefPass(GLResources):
             for name, value in (("u_eye", camera.position), ("u_center", self.rdm.center), ("u_lo", self.lo),
                                 ("u_hi", self.hi), *_light_uniforms(self.lighting, camera)):
                 _set(prog, name, tuple(float(x) for x in value))
+            _set(prog, "u_rmax", self._rmax)
+            _set(prog, "u_rmin", self._rmin)
             _set(prog, "u_steps", self.steps)
             _set(prog, "u_refine", self.refine)
             _set(prog, "u_eps", float(0.5 * np.max(self.hi - self.lo) / self.rdm.resolution))
@@ -285,7 +312,9 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         The colour cubemap (e.g. :func:`treeform.crown.color_cubemap.color_cubemap`), faces in
         the RDM's order and orientation; default a flat green.
     steps, refine : int
-        Samples of the linear search through the bounding box, then bisections.
+        Samples of the linear search along the part of the ray that can meet the crown (inside
+        its box, from where it enters the sphere of the largest radius to where it enters that
+        of the smallest, :func:`relief_bounds`), then bisections.
     lighting : Lighting, optional
         Hemisphere ambient plus the key light, as the mesh renderer lights meshes (default
         ``Lighting()``, the renderer's default), with the RDM's normal.

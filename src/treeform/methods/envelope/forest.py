@@ -6,7 +6,8 @@ culling to the view frustum, trees whose crown is nearer than the switch distanc
 drawn as **clipped billboard clouds** (16 to 144 leaflet billboards by screen size,
 :class:`~treeform.render.cloud.CloudPass`) over their trunk and main limbs (``wood.glb``,
 instanced), and the others as **relief-mapped radial distance maps**
-(:class:`~treeform.render.impostor.ReliefPass`). Each representation of a species is one
+(:class:`~treeform.render.impostor.ReliefPass`), but for crowns narrower than ``card_px``
+pixels on screen, drawn as six-view **impostor cards** baked from the relief renderer. Each representation of a species is one
 instanced draw call: one vertex buffer per species, per-instance attributes (position,
 scale, turn, billboard count), no per-tree draw calls.
 
@@ -38,7 +39,7 @@ from treeform._shared.timing import ProgressCallback, StageTimer
 __all__ = ["FOREST_STAGES", "ForestConfig", "ForestResult", "Species", "fly_through", "load_species",
            "render_forest", "scatter_trees", "select_lod"]
 
-FOREST_STAGES = ("load", "scatter", "frames", "baseline", "export")
+FOREST_STAGES = ("load", "scatter", "cards", "frames", "baseline", "export")
 _SKY = (0.72, 0.82, 0.93, 1.0)
 _GROUND_RGB = (0.33, 0.38, 0.22)
 
@@ -68,6 +69,14 @@ class ForestConfig:
     full_billboards_px: float = 400.0
     """A crown this many pixels wide on screen (or more) gets 144 billboards; smaller ones fewer,
     by projected area, down to 16."""
+    card_px: float = 32.0
+    """Far trees whose crown is narrower than this many pixels on screen are drawn as their
+    six-view impostor cards (:func:`~treeform.methods.envelope.engine.impostor_cards`: 12
+    alpha-tested triangles, baked once per species by the relief renderer, the light in the
+    texture) instead of the relief march; 0 keeps the relief for every far tree. A crown a few
+    pixels wide shows no parallax the march could add, and its march costs per pixel: at 32 px
+    a 50,000-tree frame took 0.8x the time (H100 and llvmpipe alike) and 0.3 % of its pixels
+    changed by more than 16 / 255 (BENCHMARKS.md)."""
     baseline: bool = False
     """Also draw every frame with full meshes and record ``baseline_ms_per_frame``."""
     html: bool = False
@@ -97,6 +106,7 @@ class ForestConfig:
         self.relief_steps = check_int(self.relief_steps, "relief_steps", 4, 1024)
         self.relief_refine = check_int(self.relief_refine, "relief_refine", 0, 32)
         self.full_billboards_px = check_positive(self.full_billboards_px, "full_billboards_px")
+        self.card_px = check_positive(self.card_px, "card_px", allow_zero=True)
         as_rng(self.seed)
         return self
 
@@ -131,8 +141,9 @@ class Species:
         """Radius of the sphere around the crown centre that holds the whole tree."""
         return float(np.max(self.impostor.rdm.radii))
 
-    def memory_bytes(self) -> dict:
-        """GPU memory of the species' representations (uncompressed textures, with mip levels)."""
+    def memory_bytes(self, *, card_size: int = 0) -> dict:
+        """GPU memory of the species' representations (uncompressed textures, with mip levels);
+        ``card_size``: the edge of one view of its impostor cards, 0 when the forest draws none."""
         imp = self.impostor
         leaf = imp.leaflets.rgba.shape[0] * imp.leaflets.rgba.shape[1] * 4
         wood = sum(p.n_vertices * 48 + p.n_triangles * 12 for p in imp.wood.parts)
@@ -140,6 +151,8 @@ class Species:
         out = {"rdm": int(imp.rdm.radii.size * 4), "color_cubemap": int(imp.color.size),
                "leaflet_textures": int(3 * leaf * 4 / 3), "billboard_points": int(imp.cloud_points.nbytes),
                "wood": int(wood + wood_tex * 4 / 3)}
+        if card_size:
+            out["impostor_cards"] = int(6 * card_size * card_size * 4 * 4 / 3 + 24 * 32)
         out["total"] = int(sum(out.values()))
         return out
 
@@ -227,14 +240,15 @@ def fly_through(area, frames: int, size, fov_y: float, *, height: float = 45.0):
 
 
 def select_lod(instances: np.ndarray, species: list, camera, switch_distance: float, *,
-               full_px: float = 400.0) -> dict:
+               full_px: float = 400.0, card_px: float = 0.0) -> dict:
     """Frustum culling and the LoD switch for one frame.
 
     Returns
     -------
     dict
         ``visible`` (N,) bool, ``near`` (N,) bool (visible and the crown centre nearer than
-        ``switch_distance``), ``count`` (N,) billboards for the near ones.
+        ``switch_distance``), ``count`` (N,) billboards for the near ones, ``card`` (N,) bool
+        (visible, not near, and the crown narrower than ``card_px`` pixels on screen).
     """
     from treeform.render.cloud import billboard_count
     from treeform.render.instances import yaw_matrix
@@ -256,7 +270,8 @@ def select_lod(instances: np.ndarray, species: list, camera, switch_distance: fl
     near = visible & (dist < float(switch_distance))
     diam_px = 2.0 * radius * camera.focal / np.maximum(z, camera.near)
     count = np.where(near, billboard_count(diam_px, full_px=full_px), 0)
-    return {"visible": visible, "near": near, "count": count}
+    card = visible & ~near & (diam_px < float(card_px))
+    return {"visible": visible, "near": near, "count": count, "card": card}
 
 
 @dataclass
@@ -312,9 +327,12 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
     lighting = Lighting(shadow=0.0)
     ground = _ground(cfg.area)
     renderer = Renderer(cams[0], samples=1, background=_SKY, lighting=lighting)
-    clouds, reliefs = [], []
+    clouds, reliefs, cards = [], [], []
     frames, baseline_frames, per_frame = [], [], []
     try:
+        if cfg.card_px > 0:
+            with timer.stage("cards"):
+                cards = [_forest_cards(s.impostor, lighting) for s in species]
         for k, s in enumerate(species):
             imp = s.impostor
             clouds.append(CloudPass(imp.rdm, imp.cloud_points, imp.cloud_size, imp.leaflets, color=imp.color,
@@ -324,24 +342,27 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
         with timer.stage("frames"):
             for i, cam in enumerate([cams[0], *cams]):  # the first frame twice: once untimed (shaders compile,
                 renderer.camera = cam                    # textures upload on first use), so times are steady-state
-                lod = select_lod(trees, species, cam, cfg.switch_distance, full_px=cfg.full_billboards_px)
+                lod = select_lod(trees, species, cam, cfg.switch_distance, full_px=cfg.full_billboards_px,
+                                 card_px=cfg.card_px)
                 rows = np.column_stack([trees[:, :5], lod["count"]]).astype(np.float32)
                 items = [(ground, None)]
                 for k, s in enumerate(species):
                     mine = trees[:, 6] == k
-                    near, far = mine & lod["near"], mine & lod["visible"] & ~lod["near"]
+                    near, far = mine & lod["near"], mine & lod["visible"] & ~lod["near"] & ~lod["card"]
                     items.append((s.impostor.wood, rows[near]))
+                    if cards:
+                        items.append((cards[k], rows[mine & lod["card"]]))
                     clouds[k].instances, reliefs[k].instances = rows[near], rows[far]
                 stats: dict = {}
                 res = renderer.render_scene(items, passes=[*clouds, *reliefs], stats=stats)
                 if i == 0:
                     continue
                 frames.append(res.color)
-                n_vis, n_near = int(lod["visible"].sum()), int(lod["near"].sum())
+                n_vis, n_near, n_card = int(lod["visible"].sum()), int(lod["near"].sum()), int(lod["card"].sum())
                 per_frame.append({"ms": round(stats["draw"], 3), "meshes_ms": round(stats["meshes"], 3),
                                   "cloud_ms": round(stats.get("cloud", 0.0), 3),
                                   "relief_ms": round(stats.get("relief", 0.0), 3), "read_ms": round(stats["read"], 3),
-                                  "visible": n_vis, "near": n_near, "far": n_vis - n_near,
+                                  "visible": n_vis, "near": n_near, "far": n_vis - n_near - n_card, "cards": n_card,
                                   "billboards": int(lod["count"].sum())})
         if cfg.baseline:
             with timer.stage("baseline"):
@@ -408,6 +429,23 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
     return result
 
 
+_CARD_SIZE = 128
+"""Edge in texels of one view of the forest's impostor cards (they stand for crowns a few pixels wide)."""
+
+
+def _forest_cards(imp, lighting, *, size: int = _CARD_SIZE):
+    """A species' impostor cards for the forest's farthest tier: unlit (the light is baked in)."""
+    from dataclasses import replace
+
+    from treeform.methods.envelope.engine import impostor_cards
+    from treeform.structures.mesh import Mesh
+
+    mesh = impostor_cards(imp, size=size, lighting=lighting)
+    for p in mesh.parts:
+        p.material = replace(p.material, unlit=True)
+    return Mesh(mesh.parts)
+
+
 def _timing(cfg: ForestConfig, species: list, per_frame: list) -> dict:
     def med(key):
         vals = [f[key] for f in per_frame if key in f]
@@ -421,10 +459,11 @@ def _timing(cfg: ForestConfig, species: list, per_frame: list) -> dict:
         "trees": int(cfg.trees), "area_m": list(cfg.area), "size": list(cfg.size),
         "switch_distance_m": cfg.switch_distance, "frames": len(per_frame),
         "ms_per_frame": med("ms"), "visible_trees": med("visible"), "near_trees": med("near"),
-        "far_trees": med("far"),
+        "far_trees": med("far"), "card_trees": med("cards"),
         "trees_per_ms": {"cloud": rate("near", "cloud_ms"), "relief": rate("far", "relief_ms")},
         "per_frame": per_frame,
-        "memory_per_species_bytes": {s.name: s.memory_bytes() for s in species},
+        "memory_per_species_bytes": {s.name: s.memory_bytes(card_size=_CARD_SIZE if cfg.card_px > 0 else 0)
+                                     for s in species},
     }
     if cfg.baseline:
         out["baseline_ms_per_frame"] = med("baseline_ms")

@@ -54,9 +54,10 @@ def _species_data(s) -> dict:
     from treeform.io.gltf import write_glb
     from treeform.render.cloud import leaflet_textures
 
+    from treeform.render.impostor import relief_bounds
+
     imp = s.impostor
-    lo, hi = imp.rdm.bounds()
-    pad = 1e-3 * max(float(np.max(hi - lo)), 1e-6)
+    lo, hi, rmin, rmax = relief_bounds(imp.rdm)
     rgba, shade, geo, luma = leaflet_textures(imp.leaflets)  # as the renderer's CloudPass packs them
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
@@ -67,7 +68,7 @@ def _species_data(s) -> dict:
         wood = Path(write_glb(imp.wood, Path(tmp) / "wood.glb")).read_bytes()
     return {
         "name": s.name, "radius": s.crown_radius,
-        "box": [[float(x) for x in lo - pad], [float(x) for x in hi + pad]],
+        "box": [[float(x) for x in lo], [float(x) for x in hi]], "rmin": rmin, "rmax": rmax,
         "rdm": {"center": [float(x) for x in imp.rdm.center], "res": int(imp.rdm.resolution),
                 "radii": _b64(imp.rdm.radii.astype("<f4"))},
         "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},

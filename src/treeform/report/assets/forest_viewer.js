@@ -79,6 +79,7 @@
         u_view: shared.view, u_proj: shared.proj, u_eye: shared.eye, u_rdm: { value: rdm }, u_color: { value: color },
         u_front: { value: shared.blank }, u_planar: { value: 0 }, u_center: { value: new THREE.Vector3().fromArray(c) },
         u_lo: { value: new THREE.Vector3().fromArray(lo) }, u_hi: { value: new THREE.Vector3().fromArray(hi) },
+        u_rmin: { value: S.rmin }, u_rmax: { value: S.rmax },
         u_steps: { value: D.relief_steps }, u_refine: { value: D.relief_refine },
         u_eps: { value: 0.5 * Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / res }, u_id: { value: 2001 + k },
         u_right: { value: new THREE.Vector3() }, u_up: { value: new THREE.Vector3() }, u_front_px: { value: new THREE.Vector2() },
