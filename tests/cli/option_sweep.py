@@ -48,6 +48,7 @@ VALID = {
     ("train feet", "--render-fraction", "0"): "no synthetic renders",
     ("train feet", "--max-minutes", "0"): "0 = no time limit (documented)",
     ("dataset generate", "--photo-fraction", "0"): "no photo backgrounds",
+    ("dataset generate", "--bare", "0"): "no leafless samples (the default)",
     ("animate", "--wind", "0"): "still air: a still, looping animation",
     ("animate", "--direction", "-1"): "an angle: any real number, taken modulo 360",
     ("animate", "--direction", "0"): "an angle",

@@ -90,3 +90,26 @@ def test_mesh_is_stored_on_request(gl, tmp_path):
     assert read_glb_counts(tmp_path / "t.glb")[1] == s.mesh.n_triangles
     assert not any(k.endswith(".glb") for k in encode_sample(make_sample(7, 0, SampleOptions(size=48, lod="low",
                                                                                             supersample=1))))
+
+
+def test_bare_samples_are_winter_trees_and_leave_the_others_alone(gl, samples):
+    """--bare: a share of the samples drawn leafless (every tree pixel wood); the others byte-identical."""
+    bare = [make_sample(7, i, SampleOptions(size=64, lod="low", bare=0.5)) for i in range(6)]
+    kinds = [bool(s.meta.get("bare")) for s in bare]
+    assert any(kinds) and not all(kinds)
+    for i, s in enumerate(bare):
+        if s.meta.get("bare"):
+            assert not (s.mask == LABELS["foliage"]).any() and (s.mask == LABELS["branch"]).any()
+            assert s.meta["leaves"] == 0 and {p.name for p in s.mesh.parts} == {"bark"}
+            # the same tree as its leafy self: species, growth and RBV (the skeleton's) unchanged
+            leafy = samples[i] if i < 3 else make_sample(7, i, OPTS)
+            assert s.species == leafy.species and s.skeleton.n_nodes == leafy.skeleton.n_nodes
+            assert all(np.array_equal(a, b) for a, b in zip(s.rbv, leafy.rbv))
+        else:
+            leafy = samples[i] if i < 3 else make_sample(7, i, OPTS)
+            a, b = encode_sample(s), encode_sample(leafy)
+            assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+    everyone = make_sample(7, 0, SampleOptions(size=64, lod="low", bare=1.0))
+    assert everyone.meta["bare"] and not (everyone.mask == LABELS["foliage"]).any()
+    with pytest.raises(InputError, match="bare"):
+        SampleOptions(bare=1.5).validate()

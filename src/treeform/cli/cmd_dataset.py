@@ -27,6 +27,8 @@ def generate_cmd(
     mesh: bool = typer.Option(False, "--mesh/--no-mesh", help="Also store each tree's GLB."),
     backgrounds: Optional[Path] = typer.Option(None, "--backgrounds", help="Folder of your own background photos."),
     photo_fraction: float = typer.Option(0.5, "--photo-fraction", help="Share of samples over your photos."),
+    bare: float = typer.Option(0.0, "--bare", help="Share of leafless samples (winter trees: bark only, labelled "
+                               "wood); 0 keeps every sample as before."),
 ):
     """Render N grown trees over varied backgrounds on Dask; rerun the same command to resume.
 
@@ -38,7 +40,7 @@ def generate_cmd(
 
     res = run_api(generate_dataset, out, n=n, size=size, species=species, workers=workers, scheduler=scheduler,
                   seed=seed, shard_size=shard_size, mesh=mesh, backgrounds=backgrounds, photo_fraction=photo_fraction,
-                  display=CountProgress("samples"))
+                  bare=bare, display=CountProgress("samples"))
     rate = f" in {res.seconds:.1f} s ({res.samples_per_second:.2f} samples/s on {res.workers} workers)" if res.seconds else ""
     kept = f"; {res.kept} sample(s) kept from an interrupted run" if res.kept else ""
     typer.echo(f"{res.generated} samples in {len(res.shards_written)} new shard(s){rate}; "

@@ -114,7 +114,7 @@ def sample_members(seed: int, index: int, options: dict, backgrounds: str | None
 def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: int | None = None,
                      scheduler: str | None = None, seed: int = 0, shard_size: int = 1000, mesh: bool = False,
                      backgrounds=None, photo_fraction: float = 0.5, supersample: int = 2, lod: str = "medium",
-                     progress=None) -> GenerateResult:
+                     bare: float = 0.0, progress=None) -> GenerateResult:
     """Generate (or finish) a synthetic dataset of grown, rendered trees (seed 003 §4.2.1).
 
     Parameters
@@ -144,6 +144,8 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
         Render at this multiple of ``size`` (anti-aliasing; 1 = fastest).
     lod : str
         Mesh triangle budget (see :data:`treeform.geometry.LOD_PRESETS`).
+    bare : float
+        Share of leafless samples (:attr:`SampleOptions.bare`); 0 leaves every sample as before.
     progress : callable, optional
         ``progress(done, total)`` once at the start (``done``: samples of unfinished shards an
         interrupted run already stored) and after every resolved sample; ``total``: the
@@ -169,7 +171,8 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
     seed = check_int(seed, "seed", 0, 2**63 - 1)
     check_cluster(workers, scheduler, allow_zero=False)
     names = parse_species(species)
-    opts = SampleOptions(size=size, species=names, supersample=supersample, lod=lod, mesh=bool(mesh)).validate()
+    opts = SampleOptions(size=size, species=names, supersample=supersample, lod=lod, mesh=bool(mesh),
+                         bare=bare).validate()
     if backgrounds is not None:
         backgrounds = str(Path(backgrounds).resolve())
     _pool(backgrounds, float(photo_fraction))  # checks the folder and the fraction up front
@@ -180,7 +183,7 @@ def generate_dataset(out, *, n: int, size: int = 256, species="all", workers: in
         raise OutputError(f"--out {out}: cannot create ({exc.strerror or exc})") from None
 
     options = {"size": opts.size, "species": list(opts.species), "supersample": opts.supersample, "lod": opts.lod,
-               "mesh": opts.mesh}
+               "mesh": opts.mesh, **({"bare": opts.bare} if opts.bare else {})}  # (datasets without it: as they were)
     identity = {"format": FORMAT, "seed": seed, "shard_size": shard_size, "options": options,
                 "backgrounds": backgrounds, "photo_fraction": float(photo_fraction)}
     manifest = read_manifest(out)

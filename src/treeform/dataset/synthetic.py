@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from treeform._shared.checks import check_int
+from treeform._shared.checks import check_int, check_range
 from treeform._shared.errors import InputError
 from treeform._shared.timing import ProgressCallback, StageTimer
 
@@ -53,6 +53,10 @@ class SampleOptions:
     """Triangle budget of the tree mesh (see :data:`treeform.geometry.LOD_PRESETS`)."""
     mesh: bool = False
     """Also keep the tree mesh (GLB in the shard)."""
+    bare: float = 0.0
+    """Share of samples drawn leafless (a winter tree: the bark alone, every tree pixel wood).
+    Whether a sample is bare is drawn from a stream of its own, so every other sample is the
+    same as with 0."""
 
     def validate(self) -> "SampleOptions":
         from treeform.geometry import LOD_PRESETS
@@ -60,6 +64,7 @@ class SampleOptions:
 
         check_int(self.size, "size", 32, 2048)
         check_int(self.supersample, "supersample", 1, 4)
+        check_range(self.bare, "bare", 0.0, 1.0)
         unknown = [s for s in self.species if s not in SPECIES]
         if unknown:
             raise InputError(f"species: unknown {', '.join(map(repr, unknown))}; known: {', '.join(SPECIES)}")
@@ -125,6 +130,10 @@ class Sample:
     camera: object = field(default=None, repr=False)
     lighting: object = field(default=None, repr=False)
     store_mesh: bool = False
+
+
+_BARE_STREAM = 0xBA2E
+"""Third word of the stream that decides whether a sample is leafless (:attr:`SampleOptions.bare`)."""
 
 
 def sample_rng(seed: int, index: int) -> np.random.Generator:
@@ -341,6 +350,10 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[opts.lod],
                          leaf_texture=_leaf_variant(leaf_k)[0], seed=tree_seed)
     materials = _materials(mesh, {"bark": bark_k, "leaves": leaf_k}, rng)
+    bare = bool(float(opts.bare) > 0 and np.random.default_rng([int(seed), int(index), _BARE_STREAM]).random() < float(opts.bare))
+    if bare:  # the same tree in winter: its leaves dropped after every draw of the sample's own stream
+        mesh = type(mesh)([p for p in mesh.parts if p.name == "bark"])
+        foliage = []
 
     # -- camera, lights, render
     azimuth, elevation, fov = rng.uniform(0.0, 360.0), rng.uniform(-5.0, 30.0), rng.uniform(30.0, 55.0)
@@ -377,7 +390,7 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
                "target": [round(float(x), 5) for x in camera.target]}
     meta = {"camera": cam_out, "lighting": light_desc, "materials": materials, "background": bg_desc,
             "noise_sigma": round(noise, 4), "tree_seed": tree_seed, "nodes": skeleton.n_nodes,
-            "leaves": len(foliage), "triangles": mesh.n_triangles,
+            "leaves": len(foliage), **({"bare": True} if bare else {}), "triangles": mesh.n_triangles,
             "coverage": round(float((mask > 0).mean()), 5)}
     return Sample(index=int(index), image=image, mask=mask, rbv=rbv, rbv_height=rbv_h, rbv_radius=rbv_r,
                   species=species, species_id=SPECIES.index(species), params=params.to_dict(), skeleton=skeleton,
