@@ -327,12 +327,12 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
     lighting = Lighting(shadow=0.0)
     ground = _ground(cfg.area)
     renderer = Renderer(cams[0], samples=1, background=_SKY, lighting=lighting)
-    clouds, reliefs, cards = [], [], []
+    clouds, reliefs, card_meshes = [], [], []
     frames, baseline_frames, per_frame = [], [], []
     try:
         if cfg.card_px > 0:
             with timer.stage("cards"):
-                cards = [_forest_cards(s.impostor, lighting) for s in species]
+                card_meshes = [_forest_cards(s.impostor, lighting) for s in species]
         for k, s in enumerate(species):
             imp = s.impostor
             clouds.append(CloudPass(imp.rdm, imp.cloud_points, imp.cloud_size, imp.leaflets, color=imp.color,
@@ -350,8 +350,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
                     mine = trees[:, 6] == k
                     near, far = mine & lod["near"], mine & lod["visible"] & ~lod["near"] & ~lod["card"]
                     items.append((s.impostor.wood, rows[near]))
-                    if cards:
-                        items.append((cards[k], rows[mine & lod["card"]]))
+                    if card_meshes:
+                        items.append((card_meshes[k], rows[mine & lod["card"]]))
                     clouds[k].instances, reliefs[k].instances = rows[near], rows[far]
                 stats: dict = {}
                 res = renderer.render_scene(items, passes=[*clouds, *reliefs], stats=stats)
@@ -399,7 +399,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
                 page = forest_page_writers(species, trees, cams[0], switch_distance=cfg.switch_distance,
                                            area=cfg.area, lighting=lighting, sky=_SKY, ground=_GROUND_RGB,
                                            relief_steps=cfg.relief_steps, relief_refine=cfg.relief_refine,
-                                           full_px=cfg.full_billboards_px)
+                                           full_px=cfg.full_billboards_px, card_px=cfg.card_px,
+                                           cards=card_meshes or None)
 
             sheet = contact_sheet([f for pair in zip(frames, baseline_frames or frames) for f in
                                    (pair if baseline_frames else pair[:1])],

@@ -8,7 +8,10 @@ billboard cloud's fragment shaders are the very sources of :mod:`treeform.render
 :mod:`treeform.render.cloud`, turned into GLSL ES 3.00 by :func:`glsl_es` (WebGL 2 has no
 geometry shader: :data:`treeform.render.cloud.WEB_VS` draws the billboards as instanced quads).
 Near trees (the switch distance) are billboard clouds over their instanced wood, far ones
-relief impostors; the split is redone whenever the camera moves (drag to turn, wheel to zoom).
+relief impostors, and far crowns narrower than ``card_px`` pixels on the canvas their impostor
+cards (``render_forest``'s own, as a GLB); the split is redone whenever the camera moves (drag to
+turn, wheel to zoom). Colours are display colours, as the renderer shows them: the GLBs' textures
+are sampled as they are, not decoded from sRGB.
 """
 
 from __future__ import annotations
@@ -48,10 +51,18 @@ def _b64(a) -> str:
     return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")
 
 
-def _species_data(s) -> dict:
+def _glb_b64(write) -> str:
+    """Base64 of the GLB that ``write(path)`` writes."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        return base64.b64encode(Path(write(Path(tmp) / "m.glb")).read_bytes()).decode("ascii")
+
+
+def _species_data(s, cards=None) -> dict:
     import cv2
 
-    from treeform.io.gltf import write_glb
+    from treeform.io.gltf import GlbNode, write_glb, write_glb_scene
     from treeform.render.cloud import leaflet_textures
 
     from treeform.render.impostor import relief_bounds
@@ -62,10 +73,6 @@ def _species_data(s) -> dict:
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
         if face != imp.color.shape[1] else imp.color
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as tmp:
-        wood = Path(write_glb(imp.wood, Path(tmp) / "wood.glb")).read_bytes()
     return {
         "name": s.name, "radius": s.crown_radius,
         "box": [[float(x) for x in lo], [float(x) for x in hi]], "rmin": rmin, "rmax": rmax,
@@ -74,22 +81,29 @@ def _species_data(s) -> dict:
         "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
-        "wood": base64.b64encode(wood).decode("ascii"),
+        "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),
+        **({"cards": _glb_b64(lambda p: write_glb_scene([GlbNode(cards, unlit=True)], p))}
+           if cards is not None else {}),
     }
 
 
 def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_distance: float, area, lighting,
-                        sky, ground, relief_steps: int, relief_refine: int, full_px: float, title: str = "forest") -> list:
+                        sky, ground, relief_steps: int, relief_refine: int, full_px: float, card_px: float = 0.0,
+                        cards: list | None = None, title: str = "forest") -> list:
     """Writers (:class:`~treeform.io.outputs.StagedOutputs`) of ``forest.html``, ``forest_data.js`` and
-    ``assets/`` (three.js, its licence, the viewer). Call on the thread that owns nothing GL: no GL is used."""
+    ``assets/`` (three.js, its licence, the viewer). Call on the thread that owns nothing GL: no GL is used.
+
+    ``cards``: each species' impostor cards (unlit meshes, as ``render_forest`` draws them), drawn
+    for far crowns narrower than ``card_px`` pixels on the page's canvas; None draws none."""
     from treeform.render import impostor as relief
     from treeform.render import cloud
     from treeform.report.eval_page import ASSETS
 
     data = {
-        "species": [_species_data(s) for s in species],
+        "species": [_species_data(s, None if cards is None else cards[k]) for k, s in enumerate(species)],
         "trees": _b64(np.asarray(trees, "<f4")), "trees_count": int(len(trees)),
         "switch_distance": float(switch_distance), "area": [float(a) for a in area], "full_px": float(full_px),
+        "card_px": float(card_px) if cards is not None else 0.0,
         "relief_steps": int(relief_steps), "relief_refine": int(relief_refine), "cloud_ao": 0.3,
         "sky": [float(x) for x in sky[:3]], "ground": [float(x) for x in ground[:3]],
         "lighting": {"direction": [float(x) for x in lighting.world_direction(camera)], "key": list(lighting.key),

@@ -8,7 +8,7 @@
   const { GLTFLoader } = __tf_require('three/addons/loaders/GLTFLoader.js');
   const { OrbitControls } = __tf_require('three/addons/controls/OrbitControls.js');
   const D = window.__tf_forest;
-  window.treeformViewerState = { done: false, error: null, near: 0, far: 0, billboards: 0, culled: 0 };
+  window.treeformViewerState = { done: false, error: null, near: 0, far: 0, cards: 0, billboards: 0, culled: 0 };
 
   function bytes(b64) {
     const bin = atob(b64), out = new Uint8Array(bin.length);
@@ -109,19 +109,27 @@
     const cloudMesh = new THREE.Mesh(quad, cloud);
     cloudMesh.frustumCulled = false;
     scene.add(cloudMesh);
-    const sp = { S: S, points: floats(S.cloud.points), box: box, quad: quad, reliefMesh: reliefMesh, cloudMesh: cloudMesh, wood: null };
-    new GLTFLoader().parse(bytes(S.wood).buffer, '', function (gltf) {
-      const meshes = [];
-      gltf.scene.traverse(function (o) { if (o.isMesh) meshes.push(o); });
-      sp.wood = meshes.map(function (m) {
-        const im = new THREE.InstancedMesh(m.geometry, m.material, D.trees_count);
-        im.count = 0; im.frustumCulled = false;
-        scene.add(im);
-        return im;
-      });
-      shared.loaded += 1;
-      shared.update();
-    }, function (e) { window.treeformViewerState.error = String(e); });
+    const sp = { S: S, points: floats(S.cloud.points), box: box, quad: quad, reliefMesh: reliefMesh, cloudMesh: cloudMesh,
+      wood: null, cards: null };
+    // the instanced meshes of a GLB (the wood of near trees; the impostor cards of the farthest crowns)
+    function instanced(b64, key) {
+      new GLTFLoader().parse(bytes(b64).buffer, '', function (gltf) {
+        const meshes = [];
+        gltf.scene.traverse(function (o) { if (o.isMesh) meshes.push(o); });
+        sp[key] = meshes.map(function (m) {
+          // display colours, as the renderer shows them: the GLB's textures are not decoded from sRGB
+          for (const t of ['map', 'normalMap']) if (m.material[t]) { m.material[t].colorSpace = THREE.NoColorSpace; m.material[t].needsUpdate = true; }
+          const im = new THREE.InstancedMesh(m.geometry, m.material, D.trees_count);
+          im.count = 0; im.frustumCulled = false;
+          scene.add(im);
+          return im;
+        });
+        shared.loaded += 1;
+        shared.update();
+      }, function (e) { window.treeformViewerState.error = String(e); });
+    }
+    instanced(S.wood, 'wood');
+    if (S.cards && D.card_px > 0) instanced(S.cards, 'cards');
     return sp;
   }
 
@@ -156,6 +164,7 @@
     shared.blank.needsUpdate = true;
     const trees = floats(D.trees);  // (N, 7): x, y, z, scale, yaw, 0, species
     const list = D.species.map((S, k) => species(S, k, scene, shared));
+    const toLoad = D.species.reduce((n, S) => n + 1 + (S.cards && D.card_px > 0 ? 1 : 0), 0);
     const tmp = new THREE.Matrix4(), q = new THREE.Quaternion(), sv = new THREE.Vector3(), tv = new THREE.Vector3();
     const up = new THREE.Vector3(0, 1, 0);
 
@@ -170,10 +179,10 @@
       const frustum = new THREE.Frustum().setFromProjectionMatrix(
         new THREE.Matrix4().multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse));
       const sphere = new THREE.Sphere();
-      let near = 0, far = 0, billboards = 0, culled = 0;
+      let near = 0, far = 0, cards = 0, billboards = 0, culled = 0;
       for (let k = 0; k < list.length; k++) {
         const sp = list[k], S = sp.S, c = S.rdm.center, P = sp.points.length / 3;
-        const farRows = [], bb = [], inst = [], extra = [], wood = [];
+        const farRows = [], bb = [], inst = [], extra = [], wood = [], card = [];
         for (let i = 0; i < D.trees_count; i++) {
           if (trees[7 * i + 6] !== k) continue;
           const x = trees[7 * i], y = trees[7 * i + 1], z = trees[7 * i + 2], s = trees[7 * i + 3], yaw = trees[7 * i + 4];
@@ -183,9 +192,15 @@
           sphere.center.set(x + w[0], y + w[1], z + w[2]);
           sphere.radius = r + Math.hypot(c[0], c[1], c[2]) * s;  // the crown's reach plus its height over the foot
           if (!frustum.intersectsSphere(sphere)) { culled++; continue; }
-          if (Math.hypot(dx, dy, dz) >= D.switch_distance) { farRows.push(x, y, z, s, yaw, 0); far++; continue; }
-          near++;
           const px = 2 * r * focal / Math.max(along, camera.near);
+          if (Math.hypot(dx, dy, dz) >= D.switch_distance) {
+            // a crown a few pixels wide: its impostor cards (as treeform's renderer draws it), else the relief march
+            if (sp.cards && px < D.card_px) {
+              card.push(tmp.compose(tv.set(x, y, z), q.setFromAxisAngle(up, yaw), sv.set(s, s, s)).clone()); cards++;
+            } else { farRows.push(x, y, z, s, yaw, 0); far++; }
+            continue;
+          }
+          near++;
           const count = Math.max(16, Math.min(144, Math.round(144 * Math.pow(px / D.full_px, 2))));
           const edge = S.cloud.size * s * Math.sqrt(P / Math.min(count, P));
           for (let j = 0; j < Math.min(count, P); j++) {
@@ -204,15 +219,15 @@
         sp.quad.setAttribute('in_inst', new THREE.InstancedBufferAttribute(new Float32Array(inst), 4));
         sp.quad.setAttribute('in_extra', new THREE.InstancedBufferAttribute(new Float32Array(extra), 2));
         sp.quad.instanceCount = bb.length / 4;
-        if (sp.wood) for (const im of sp.wood) {
-          wood.forEach((m, i) => im.setMatrixAt(i, m));
-          im.count = wood.length;
+        for (const [ims, mats] of [[sp.wood, wood], [sp.cards, card]]) if (ims) for (const im of ims) {
+          mats.forEach((m, i) => im.setMatrixAt(i, m));
+          im.count = mats.length;
           im.instanceMatrix.needsUpdate = true;
         }
       }
       renderer.render(scene, camera);
-      Object.assign(window.treeformViewerState, { near: near, far: far, billboards: billboards, culled: culled,
-        done: shared.loaded === list.length, calls: renderer.info.render.calls });
+      Object.assign(window.treeformViewerState, { near: near, far: far, cards: cards, billboards: billboards,
+        culled: culled, done: shared.loaded === toLoad, calls: renderer.info.render.calls });
     }
     shared.update = update;
     controls.addEventListener('change', update);
