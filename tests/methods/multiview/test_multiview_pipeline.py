@@ -56,6 +56,8 @@ def test_model_matches_the_views(run):
     from treeform.methods.multiview.pipeline import MIN_GROUND_POINTS
 
     assert m["sfm"]["frame"]["ground_inliers"] >= MIN_GROUND_POINTS and m["scale_warning"] is None
+    # every photo registered: no registration warning either
+    assert (m["registration_warning"] is None) == (m["registered"] == m["photos"])
     assert m["silhouette_iou_median"] > 0.15  # far from the issue's 0.8: see the issue note
     assert m["visible_nodes"] > 5 and res.skeleton.n_nodes > m["visible_nodes"]  # hidden branches grown
     # the tree stands on the ground at the origin (its root was 1.7 m up where the mattes lost the foot)

@@ -35,7 +35,8 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.methods.multiview.config import MultiviewConfig
 
-__all__ = ["MIN_GROUND_POINTS", "STAGES", "MultiviewResult", "reconstruct_multiview", "scale_warning"]
+__all__ = ["MIN_GROUND_POINTS", "STAGES", "MultiviewResult", "reconstruct_multiview", "registration_warning",
+           "scale_warning"]
 
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
@@ -80,6 +81,27 @@ def scale_warning(frame: dict, height_given: bool) -> str | None:
         return None
     return (f"the metric scale rests on a ground plane through {n} SfM points (under {MIN_GROUND_POINTS}): "
             "the tree's height may be off by a factor of two or more; give --height for a reliable scale")
+
+
+def registration_warning(photos: int, unregistered) -> str | None:
+    """One line for the user when some photos did not register, else None.
+
+    The model then sees the tree only from the registered photos' directions (a 12-photo
+    capture of our park scene registered 3: its hull is a wedge).
+
+    Examples
+    --------
+    >>> registration_warning(24, []) is None
+    True
+    >>> registration_warning(12, [f"v{i:02d}.jpg" for i in range(9)])
+    '9 of 12 photos did not register (v00.jpg, v01.jpg, v02.jpg, ...): the tree is seen from the other 3 alone; photos 15-20 degrees apart all around the tree register best'
+    """
+    miss = list(unregistered)
+    if not miss:
+        return None
+    names = ", ".join(str(m) for m in miss[:3]) + (", ..." if len(miss) > 3 else "")
+    return (f"{len(miss)} of {photos} photos did not register ({names}): the tree is seen from the other "
+            f"{photos - len(miss)} alone; photos 15-20 degrees apart all around the tree register best")
 
 
 STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
@@ -387,6 +409,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "leaves": len(foliage), "triangles": mesh.n_triangles, "tree_height_m": round(float(height), 4),
         "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
         "scale_warning": scale_warning(sfm.meta.get("frame", {}), cfg.height is not None),
+        "registration_warning": registration_warning(len(views), sfm.unregistered),
         "silhouette_iou_median": round(float(np.median(iou)), 4) if len(iou) else None,
         "silhouette_iou_min": round(float(np.min(iou)), 4) if len(iou) else None,
         "sfm": sfm.meta,
