@@ -366,6 +366,14 @@ def main():
           "3,000 planned steps before the lease's time ran short). Synthetic mean IoU 71.5 -> 72.1 % at 224 px "
           "(wood 33.5 -> 34.2 %) and 73.3 -> 73.7 % at 320 px, composites median 0.842 -> 0.850: consistent but "
           "small, so the shipped weights were kept rather than a new binary committed.",
+          "- Tried (2026-11-27, not shipped): leafless trees. The synthetic renders always wear leaves and the "
+          "bare cut-outs are labelled tree of unknown part, so no bare branch was ever labelled wood; `treeform"
+          " dataset generate --bare F` now draws a share of the samples leafless. Fine-tuned on an H100 with 15"
+          " % of them (3,000 steps from the shipped weights): wood IoU on the held-out trees drawn leafless "
+          "29.3 -> 49.5 %, the leafy split unchanged (72.3 -> 72.5 %), composites median 0.842 -> 0.852; but "
+          "the real photos moved both ways (the bare sycamore Platanus occidentalis 2 found more whole, the "
+          "spring maple Acer macrophyllum 1 shrunk to its lower limbs), so the shipped weights were kept "
+          "(BENCHMARKS.md).",
           "- The trunk-foot detector (2026-11-26) finds more of `bench_scene`'s trees with `--feet both` (table "
           "above) but is not the default: on real photos its peaks are weak (mostly below 0.4) and scattered over "
           "grass and undergrowth, and where some pass 0.4 beside a large tree they split it into strips (Ulmus "

@@ -46,11 +46,14 @@ def test_same_input_same_output(sfm_result, capture, colmap):
     # bitwise equal in every run we made but one (101 runs): there 5 of 1682 points differed
     # (see treeform.sfm.colmap, determinism); the model must in any case be the same. (The
     # rotation error of a bitwise-equal model is 3e-5 degrees: it read 0.035-0.054 degrees, and
-    # once failed a 0.05 bound, while pose_errors took the angle by arccos of the trace.)
+    # once failed a 0.05 bound, while pose_errors took the angle by arccos of the trace.) A model that
+    # is not bitwise equal (a run under load, 2026-11-27: a few points differed) turned its cameras by
+    # 0.026 degrees: still the same model (the cameras' error against the truth is 0.2 degrees), so the
+    # bound is 0.1 degrees; a different model is off by degrees.
     assert abs(len(again.points) - len(sfm_result.points)) <= 0.01 * len(sfm_result.points)
     err = pose_errors(again, sfm_result.cameras_json())
     assert err["scale"] == pytest.approx(1.0, abs=1e-2) and err["position_max_rel"] < 1e-3
-    assert err["rotation_max_deg"] < 0.02
+    assert err["rotation_max_deg"] < 0.1
     if len(again.points) == len(sfm_result.points):
         np.testing.assert_allclose(again.cam_to_world, sfm_result.cam_to_world, atol=1e-9)
         np.testing.assert_allclose(again.points, sfm_result.points, atol=1e-9)
