@@ -38,7 +38,8 @@ def forest_cmd(
                   inputs=[("--species-dir", species_dir)])
     t = res.timing
     line = (f"forest of {len(res.instances)} trees, {t['frames']} frames of {t['size'][0]}x{t['size'][1]}: "
-            f"{t['visible_trees']:.0f} visible ({t['near_trees']:.0f} as billboard clouds), "
+            f"{t['visible_trees']:.0f} visible ({t['near_trees']:.0f} as billboard clouds, "
+            f"{t['card_trees']:.0f} as impostor cards), "
             f"{t['ms_per_frame']:.0f} ms a frame")
     if baseline:
         line += f"; full meshes {t['baseline_ms_per_frame']:.0f} ms ({t['speedup']:.1f}x slower)"

@@ -119,7 +119,7 @@ def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_dist
 <style>body{{margin:0;font-family:sans-serif;background:#222;color:#ddd}}
 #tf-viewer{{width:100vw;height:calc(100vh - 2.2em);display:block}} p{{margin:0.4em 0.8em}}</style></head>
 <body><p>treeform forest: {len(trees)} trees, {len(species)} species; billboard clouds within
-{switch_distance:g} m, relief-mapped impostors beyond (drag to turn, wheel to zoom). three.js (MIT, assets/THREE_LICENSE).</p>
+{switch_distance:g} m, relief-mapped impostors beyond{f", impostor cards for crowns under {card_px:g} px" if cards is not None and card_px > 0 else ""} (drag to turn, wheel to zoom). three.js (MIT, assets/THREE_LICENSE).</p>
 <canvas id="tf-viewer"></canvas>
 <script src="assets/three-modules.js"></script><script src="forest_data.js"></script>
 <script src="assets/forest_viewer.js"></script></body></html>
