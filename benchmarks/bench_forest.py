@@ -83,8 +83,9 @@ def main():
     base_ms = np.median(np.asarray(base_ms), axis=0)  # per frame, over the repeats
     print(f"# {machine()} ({t['renderer']})")
     print(f"# species {args.species}: trees and impostors made in {prep:.1f} s")
-    print(f"{t['trees']} trees on {args.area:.0f} m x {args.area:.0f} m, {args.size}, d = {args.switch_distance:.0f} m, "
-          f"{t['frames']} frames: visible {t['visible_trees']:.0f} (near {t['near_trees']:.0f}, far {t['far_trees']:.0f})")
+    print(f"{t['trees']} trees on {args.area:.0f} m x {args.area:.0f} m, {args.size}, "
+          f"d = {args.switch_distance:.0f} m, {t['frames']} frames: visible {t['visible_trees']:.0f} "
+          f"(near {t['near_trees']:.0f}, far {t['far_trees']:.0f}, cards {t['card_trees']:.0f})")
     print(f"LoD frame: {t['ms_per_frame']:.1f} ms median; trees/ms cloud {t['trees_per_ms']['cloud']}, "
           f"relief {t['trees_per_ms']['relief']}")
     if args.baseline:

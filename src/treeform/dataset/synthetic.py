@@ -350,7 +350,8 @@ def make_sample(seed: int, index: int, options: SampleOptions | None = None, *, 
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[opts.lod],
                          leaf_texture=_leaf_variant(leaf_k)[0], seed=tree_seed)
     materials = _materials(mesh, {"bark": bark_k, "leaves": leaf_k}, rng)
-    bare = bool(float(opts.bare) > 0 and np.random.default_rng([int(seed), int(index), _BARE_STREAM]).random() < float(opts.bare))
+    share = float(opts.bare)
+    bare = share > 0 and bool(np.random.default_rng([int(seed), int(index), _BARE_STREAM]).random() < share)
     if bare:  # the same tree in winter: its leaves dropped after every draw of the sample's own stream
         mesh = type(mesh)([p for p in mesh.parts if p.name == "bark"])
         foliage = []

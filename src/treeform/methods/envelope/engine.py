@@ -82,7 +82,7 @@ def _bleed(rgba: np.ndarray, iterations: int = 6) -> np.ndarray:
     return out
 
 
-def impostor_cards(imp, *, size: int = 256, lighting=None):
+def impostor_cards(imp, *, size: int = 256, lighting=None, unlit: bool = False):
     """Six-view impostor cards of a tree, baked by the relief-mapped RDM renderer.
 
     Parameters
@@ -92,6 +92,9 @@ def impostor_cards(imp, *, size: int = 256, lighting=None):
     size : int
         Edge of one view in texels (the atlas is 3 x 2 views).
     lighting : Lighting, optional
+    unlit : bool
+        Mark the material unlit (the light is baked in), for a renderer that would light it again;
+        a GLB gets ``KHR_materials_unlit`` from its node either way.
 
     Returns
     -------
@@ -128,7 +131,7 @@ def impostor_cards(imp, *, size: int = 256, lighting=None):
     normals = np.repeat([[math.sin(math.radians(60.0 * k)), 0.0, math.cos(math.radians(60.0 * k))]
                          for k in range(CARD_VIEWS)], 4, axis=0)
     mat = Material(name="impostor_cards", texture=_bleed(atlas), alpha_mode="MASK", alpha_cutoff=0.5,
-                   double_sided=False, roughness=1.0, metallic=0.0)
+                   double_sided=False, roughness=1.0, metallic=0.0, unlit=unlit)
     part = MeshPart(np.asarray(pos, np.float32), normals.astype(np.float32), np.asarray(uv, np.float32), None,
                     idx.astype(np.uint32), mat)
     part.name = "impostor_cards"

@@ -7,9 +7,9 @@ drawn as **clipped billboard clouds** (16 to 144 leaflet billboards by screen si
 :class:`~treeform.render.cloud.CloudPass`) over their trunk and main limbs (``wood.glb``,
 instanced), and the others as **relief-mapped radial distance maps**
 (:class:`~treeform.render.impostor.ReliefPass`), but for crowns narrower than ``card_px``
-pixels on screen, drawn as six-view **impostor cards** baked from the relief renderer. Each representation of a species is one
-instanced draw call: one vertex buffer per species, per-instance attributes (position,
-scale, turn, billboard count), no per-tree draw calls.
+pixels on screen, drawn as six-view **impostor cards** baked from the relief renderer. Each
+representation of a species is one instanced draw call: one vertex buffer per species,
+per-instance attributes (position, scale, turn, billboard count), no per-tree draw calls.
 
 With ``baseline`` the same frames are drawn again with every visible tree as its full mesh
 (``tree.glb``, instanced too), so the speed-up is measured side by side on the same machine.
@@ -436,15 +436,9 @@ _CARD_SIZE = 128
 
 def _forest_cards(imp, lighting, *, size: int = _CARD_SIZE):
     """A species' impostor cards for the forest's farthest tier: unlit (the light is baked in)."""
-    from dataclasses import replace
-
     from treeform.methods.envelope.engine import impostor_cards
-    from treeform.structures.mesh import Mesh
 
-    mesh = impostor_cards(imp, size=size, lighting=lighting)
-    for p in mesh.parts:
-        p.material = replace(p.material, unlit=True)
-    return Mesh(mesh.parts)
+    return impostor_cards(imp, size=size, lighting=lighting, unlit=True)
 
 
 def _timing(cfg: ForestConfig, species: list, per_frame: list) -> dict:

@@ -64,7 +64,6 @@ def _species_data(s, cards=None) -> dict:
 
     from treeform.io.gltf import GlbNode, write_glb, write_glb_scene
     from treeform.render.cloud import leaflet_textures
-
     from treeform.render.impostor import relief_bounds
 
     imp = s.impostor
@@ -113,13 +112,15 @@ def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_dist
         "shaders": {"relief_vs": glsl_es(relief._VS), "relief_fs": glsl_es(relief._FS),
                     "cloud_vs": glsl_es(cloud.WEB_VS), "cloud_fs": glsl_es(cloud._FS)},
     }
+    cards_line = f", impostor cards for crowns under {card_px:g} px" if data["card_px"] > 0 else ""
     script = "window.__tf_forest = " + json.dumps(data, separators=(",", ":")) + ";\n"
     page = f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>treeform: {title}</title>
 <style>body{{margin:0;font-family:sans-serif;background:#222;color:#ddd}}
 #tf-viewer{{width:100vw;height:calc(100vh - 2.2em);display:block}} p{{margin:0.4em 0.8em}}</style></head>
 <body><p>treeform forest: {len(trees)} trees, {len(species)} species; billboard clouds within
-{switch_distance:g} m, relief-mapped impostors beyond{f", impostor cards for crowns under {card_px:g} px" if cards is not None and card_px > 0 else ""} (drag to turn, wheel to zoom). three.js (MIT, assets/THREE_LICENSE).</p>
+{switch_distance:g} m, relief-mapped impostors beyond{cards_line} (drag to turn,
+wheel to zoom). three.js (MIT, assets/THREE_LICENSE).</p>
 <canvas id="tf-viewer"></canvas>
 <script src="assets/three-modules.js"></script><script src="forest_data.js"></script>
 <script src="assets/forest_viewer.js"></script></body></html>
