@@ -93,6 +93,59 @@ def test_cut_symbol_drops_the_rest_of_the_branch():
     assert sk.n_nodes == 4
 
 
+def test_a_cut_skips_its_points_and_the_next_point_is_the_right_one():
+    """``@T`` points inside a cut branch are skipped with it; the next ``@T`` still draws to its own."""
+    sk, _ = interpret([("[", ()), ("F", ()), ("%", ()), ("@T", (5.0, 5.0, 5.0)), ("]", ()), ("@T", (0.0, 3.0, 0.0)),
+                       ("@T", (1.0, 3.0, 0.0))])
+    assert np.allclose(sk.positions, [[0, 0, 0], [0, 1, 0], [0, 3, 0], [1, 3, 0]])
+    assert sk.parent.tolist() == [-1, 0, 0, 2]
+    with pytest.raises(InputError, match="without a matching"):
+        interpret([("F", ()), ("]", ())])
+    with pytest.raises(InputError, match="3 parameters"):
+        interpret([("@T", (1.0, 2.0))])
+
+
+def _plain_derive(ls, seed):
+    """Reference: every step rewrites a copy of the whole string (what derive() did before it kept
+    the runs no rule rewrites)."""
+    import random
+
+    rng = random.Random(seed)
+    ls._globals.update(uniform=rng.uniform, normal=rng.gauss, random=rng.random)
+    string = list(ls.axiom)
+    for _ in range(ls.derivations):
+        out, changed = [], False
+        for mod in string:
+            for rule in ls.rules.get((mod[0], len(mod[1])), ()):
+                if rule.cond is not None and not rule.cond(*mod[1]):
+                    continue
+                k = 0
+                if len(rule.choices) > 1:
+                    w = [max(float(c[0](*mod[1])), 0.0) for c in rule.choices]
+                    r = rng.random() * sum(w) if sum(w) > 0 else 0.0
+                    while k < len(w) - 1 and r >= w[k]:
+                        r -= w[k]
+                        k += 1
+                out.extend(rule.choices[k][1](*mod[1]))
+                changed = True
+                break
+            else:
+                out.append(mod)
+        string = out
+        if not changed:
+            break
+    return string
+
+
+@pytest.mark.parametrize("name", ("generic", "pine", "willow"))
+def test_derive_equals_a_rewrite_of_the_whole_string(name):
+    ls = load_preset(name, defines={"density": 2.0})
+    for seed in (0, 5):
+        assert ls.derive(seed=seed) == _plain_derive(ls, seed)
+    stoch = parse_lsystem("axiom: A B A\nderivations: 6\nA -> 0.5 : F A ; 0.5 : [ + F ] B\nB : uniform(0, 1) > 0.3 -> F(1) B")
+    assert stoch.derive(seed=2) == _plain_derive(stoch, 2)
+
+
 def test_at_t_draws_to_points_and_leaves_face_the_turtle():
     sk, fol = interpret([("@T", (1.0, 1.0, 0.0)), ("@T", (1.0, 3.0, 0.0)), ("L", (0.5,))])
     assert np.allclose(sk.positions, [[0, 0, 0], [1, 1, 0], [1, 3, 0]])

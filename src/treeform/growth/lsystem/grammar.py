@@ -189,19 +189,27 @@ class LSystem:
         g["uniform"] = rng.uniform
         g["normal"] = rng.gauss
         g["random"] = rng.random
-        string = list(self.axiom if axiom is None else axiom)
         steps = self.derivations if steps is None else int(steps)
         rules = self.rules
+        # The string is kept as a list of items: a module that some rule rewrites, or a list (a run)
+        # of modules none does. A run never changes again, so each step carries it over by reference
+        # and only the rewritable modules are visited (rules, conditions and random draws in the
+        # same order as a scan of the whole string: the same result, without copying the grown
+        # part of the string at every step).
+        string: list = []
+        count = _append_split(string, self.axiom if axiom is None else axiom, rules)
+        split: dict = {}
         for _ in range(steps):
             out: list = []
             changed = False
+            count = 0
             for mod in string:
-                cands = rules.get((mod[0], len(mod[1])))
-                if cands is None:
+                if type(mod) is list:
                     out.append(mod)
+                    count += len(mod)
                     continue
                 p = mod[1]
-                for rule in cands:
+                for rule in rules[(mod[0], len(p))]:
                     if rule.cond is not None and not rule.cond(*p):
                         continue
                     if len(rule.choices) == 1:
@@ -215,18 +223,54 @@ class LSystem:
                             r -= w[k]
                             k += 1
                         succ = rule.choices[k][1]
-                    out.extend(succ(*p))
+                    mods = succ(*p)
+                    at = split.get(succ)
+                    if at is None:  # where a successor's rewritable modules are: the same on every call
+                        at = split[succ] = tuple(j for j, m in enumerate(mods) if (m[0], len(m[1])) in rules)
+                    prev = 0
+                    for j in at:
+                        if j > prev:
+                            _append_run(out, mods[prev:j])
+                        out.append(mods[j])
+                        prev = j + 1
+                    if prev < len(mods):
+                        _append_run(out, mods[prev:])
+                    count += len(mods)
                     changed = True
                     break
                 else:
                     out.append(mod)
-                if len(out) > MAX_MODULES:
+                    count += 1
+                if count > MAX_MODULES:
                     raise InputError(f"L-system {self.name or ''}: the string grew past {MAX_MODULES} modules "
                                      "(fewer derivations or a smaller density)".replace("  ", " "))
             string = out
             if not changed:
                 break
-        return string
+        return [m for item in string for m in (item if type(item) is list else (item,))]
+
+
+def _append_split(out: list, modules, rules: dict) -> int:
+    """Append ``modules`` to ``out`` as :meth:`LSystem.derive` keeps its string (each rewritable
+    module an item, the others gathered into runs: lists, one item each); returns their number."""
+    n = 0
+    for m in modules:
+        n += 1
+        if (m[0], len(m[1])) in rules:
+            out.append(m)
+        elif out and type(out[-1]) is list:
+            out[-1].append(m)
+        else:
+            out.append([m])
+    return n
+
+
+def _append_run(out: list, run: list) -> None:
+    """Append a run of modules no rule rewrites (a list ``out`` may keep) to a derivation's string."""
+    if out and type(out[-1]) is list:
+        out[-1].extend(run)
+    else:
+        out.append(run)
 
 
 def _int_seed(seed) -> int:

@@ -33,17 +33,7 @@ from treeform._shared.errors import InputError
 from treeform.structures.foliage import Foliage
 from treeform.structures.skeleton import TreeSkeleton
 
-__all__ = ["interpret"]
-
-
-def _rot(v, k, c, s):
-    """Rotate 3-tuple ``v`` about unit axis ``k`` by the angle with cosine ``c``, sine ``s`` (Rodrigues)."""
-    vx, vy, vz = v
-    kx, ky, kz = k
-    d = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
-    return (vx * c + (ky * vz - kz * vy) * s + kx * d,
-            vy * c + (kz * vx - kx * vz) * s + ky * d,
-            vz * c + (kx * vy - ky * vx) * s + kz * d)
+__all__ = ["interpret", "encode"]
 
 
 def _norm(v):
@@ -51,21 +41,38 @@ def _norm(v):
     return (v[0] / n, v[1] / n, v[2] / n) if n > 1e-12 else v
 
 
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+def encode(modules):
+    """A string of modules as the compiled turtle reads it: op codes (int8), first parameters,
+    whether there is one, and the ``@T`` points in order (k, 3).
+
+    Examples
+    --------
+    >>> ops, p0, has_p, pts = encode([("F", (2.0,)), ("+", ()), ("@T", (1, 2, 3)), ("X", (5.0,))])
+    >>> ops.tolist(), p0.tolist(), has_p.tolist(), pts.tolist()
+    ([1, 4, 2, 0], [2.0, 0.0, 1.0, 5.0], [True, False, True, True], [[1.0, 2.0, 3.0]])
+    """
+    from treeform.growth.lsystem._turtle_kernel import OPS
+
+    get = OPS.get
+    params = [m[1] for m in modules]
+    ops = np.array([get(m[0], 0) for m in modules], np.int8)
+    has_p = np.array([len(p) > 0 for p in params], bool)
+    p0 = np.array([float(p[0]) if p else 0.0 for p in params], np.float64)
+    at = np.flatnonzero(ops == 2)
+    if any(len(params[i]) != 3 for i in at):
+        raise InputError("@T: expected 3 parameters (x, y, z)")
+    targets = np.array([params[i] for i in at], np.float64).reshape(-1, 3)
+    return ops, p0, has_p, targets
 
 
-def _turn_onto(h, l, new_h):
-    """Rotate the frame (h, l) so that h becomes ``new_h`` by the smallest rotation."""
-    ax = _cross(h, new_h)
-    s = math.sqrt(ax[0] ** 2 + ax[1] ** 2 + ax[2] ** 2)
-    c = h[0] * new_h[0] + h[1] * new_h[1] + h[2] * new_h[2]
-    if s < 1e-9:
-        if c > 0:
-            return new_h, l
-        return new_h, (-l[0], -l[1], -l[2])  # reversal: a half turn about U keeps the frame right-handed
-    ax = (ax[0] / s, ax[1] / s, ax[2] / s)
-    return new_h, _norm(_rot(l, ax, c, s))
+def _announce_compile():
+    import logging
+
+    from treeform._shared.jit import announce_compile
+    from treeform.growth.lsystem import _turtle_kernel
+
+    announce_compile(logging.getLogger(__name__), "the L-system turtle", 3, _turtle_kernel.__file__,
+                     names={"run_turtle"})
 
 
 def interpret(modules, *, step: float = 1.0, width: float = 0.05, width_ratio: float = 0.7,
@@ -108,104 +115,19 @@ def interpret(modules, *, step: float = 1.0, width: float = 0.05, width_ratio: f
     >>> sk.positions.round(3).tolist(), sk.parent.tolist(), sk.order.tolist(), len(fol)
     ([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 2.0, 0.0]], [-1, 0, 1, 1], [0, 0, 1, 0], 1)
     """
+    from treeform.growth.lsystem._turtle_kernel import UNMATCHED, run_turtle
+
     tx, ty, tz, te = (float(v) for v in tropism)
-    tvec = _norm((tx, ty, tz))
-    pos = tuple(float(v) for v in origin)
-    h, l, u = (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
-    w, node, depth = float(width), 0, 0
-    P, par, R, O, GV = [pos], [-1], [w], [0], [True]
-    leaves: list = []
-    stack: list = []
-    rad = math.pi / 180.0
-    i, n = 0, len(modules)
-    while i < n:
-        name, p = modules[i]
-        i += 1
-        if name == "F" or name == "@T":
-            if name == "F":
-                d = float(p[0]) if p else step
-                if d <= 0:
-                    continue
-                pos = (pos[0] + h[0] * d, pos[1] + h[1] * d, pos[2] + h[2] * d)
-            else:
-                if len(p) != 3:
-                    raise InputError("@T: expected 3 parameters (x, y, z)")
-                tgt = (float(p[0]), float(p[1]), float(p[2]))
-                dv = (tgt[0] - pos[0], tgt[1] - pos[1], tgt[2] - pos[2])
-                if dv[0] ** 2 + dv[1] ** 2 + dv[2] ** 2 < 1e-18:
-                    continue
-                h, l = _turn_onto(h, l, _norm(dv))
-                u = _cross(h, l)
-                pos = tgt
-            P.append(pos)
-            par.append(node)
-            R.append(w)
-            O.append(depth)
-            GV.append(name == "@T")
-            node = len(P) - 1
-            if te != 0.0 and name == "F":
-                ax = _cross(h, tvec)
-                s = math.sqrt(ax[0] ** 2 + ax[1] ** 2 + ax[2] ** 2)
-                if s > 1e-9:
-                    ang = te * s
-                    ax = (ax[0] / s, ax[1] / s, ax[2] / s)
-                    c, sn = math.cos(ang), math.sin(ang)
-                    h = _norm(_rot(h, ax, c, sn))
-                    l = _norm(_rot(l, ax, c, sn))
-                    u = _cross(h, l)
-        elif name == "f":
-            d = float(p[0]) if p else step
-            pos = (pos[0] + h[0] * d, pos[1] + h[1] * d, pos[2] + h[2] * d)
-        elif name in "+-&^/\\" and len(name) == 1:
-            a = (float(p[0]) if p else 0.0) * rad
-            if name in "-^/":
-                a = -a
-            c, sn = math.cos(a), math.sin(a)
-            if name in "+-":  # about U: H toward L
-                h, l = _rot(h, u, c, sn), _rot(l, u, c, sn)
-            elif name in "&^":  # about L: H toward -U (down)
-                h, u = _rot(h, l, c, sn), _rot(u, l, c, sn)
-            else:  # about H
-                l, u = _rot(l, h, c, sn), _rot(u, h, c, sn)
-        elif name == "|":
-            h, l = (-h[0], -h[1], -h[2]), (-l[0], -l[1], -l[2])
-        elif name == "$":
-            nl = _cross((0.0, 1.0, 0.0), h)
-            if nl[0] ** 2 + nl[1] ** 2 + nl[2] ** 2 > 1e-12:
-                l = _norm(nl)
-                u = _cross(h, l)
-        elif name == "[":
-            stack.append((pos, h, l, u, w, node, depth))
-            depth += 1
-        elif name == "]":
-            if not stack:
-                raise InputError("L-system string: ']' without a matching '['")
-            pos, h, l, u, w, node, depth = stack.pop()
-        elif name == "!":
-            w = float(p[0]) if p else w * width_ratio
-            if w < 0:
-                w = 0.0
-        elif name == "L":
-            s = float(p[0]) if p else step
-            if s > 0:
-                leaves.append((pos[0] + h[0] * s * 0.5, pos[1] + h[1] * s * 0.5, pos[2] + h[2] * s * 0.5,
-                               u[0], u[1], u[2], h[0], h[1], h[2], s, node))
-        elif name == "%":
-            lvl = 0
-            while i < n:
-                nm = modules[i][0]
-                if nm == "[":
-                    lvl += 1
-                elif nm == "]":
-                    if lvl == 0:
-                        break
-                    lvl -= 1
-                i += 1
-    skeleton = TreeSkeleton(np.array(P), np.array(par, np.int64), radius=np.array(R), order=np.array(O, np.int32))
-    given = np.array(GV, bool)
-    if not leaves:
+    ops, p0, has_p, targets = encode(modules)
+    _announce_compile()
+    P, par, R, O, given, a, err = run_turtle(ops, p0, has_p, targets, float(step), float(width), float(width_ratio),
+                                             np.array(_norm((tx, ty, tz)), np.float64), te,
+                                             np.array([float(v) for v in origin], np.float64))
+    if err == UNMATCHED:
+        raise InputError("L-system string: ']' without a matching '['")
+    skeleton = TreeSkeleton(P, par, radius=R, order=O)
+    if not len(a):
         return (skeleton, Foliage.empty(), given) if return_given else (skeleton, Foliage.empty())
-    a = np.array(leaves, np.float64)
     col = np.tile(np.clip(np.asarray(leaf_color, np.float32), 0, 1), (len(a), 1))
     # orthonormalise (rounding drift over long strings)
     nrm = a[:, 3:6] / np.linalg.norm(a[:, 3:6], axis=1, keepdims=True)
