@@ -264,8 +264,14 @@ MIN_GROUND_INLIERS = 50
 """Fewest SfM points on the ground plane for its normal to be the vertical (else the cameras' up)."""
 
 
+SWEEP_MIN_CONTRAST = 0.04
+"""A plane sweep's ground (:func:`~treeform.sfm.sweep.sweep_ground`) is used when its best depth
+scores at least this much above the median depth (0.11-0.15 measured on three synthetic park
+captures, each within 2.3 % of the true ground)."""
+
+
 def to_tree_frame(result: SfmResult, *, origin=None, scale: float | None = None, eye_height: float = EYE_HEIGHT,
-                  max_up_angle_deg: float = 20.0, seed: int = 0) -> SfmResult:
+                  max_up_angle_deg: float = 20.0, seed: int = 0, images=None) -> SfmResult:
     """Put an SfM model into treeform's frame with default choices (seed 002 §3).
 
     Up is the ground plane's normal when it lies within ``max_up_angle_deg`` of the mean
@@ -275,12 +281,18 @@ def to_tree_frame(result: SfmResult, *, origin=None, scale: float | None = None,
     ground, unless given. Where RANSAC finds no level plane, the ground is taken through the
     5th percentile of the points below the cameras along the camera up.
 
+    With ``images`` (the registered photos in ``result.names`` order), the ground's height
+    comes from a plane sweep over the photos' ground pixels (:func:`~treeform.sfm.sweep.sweep_ground`)
+    where its best depth stands out (:data:`SWEEP_MIN_CONTRAST`): a lawn gives the matcher few
+    points, and a RANSAC plane through 4-7 of them put the eye-height scale off by 0.3-4.9x on
+    synthetic captures where the sweep was within 2.3 %.
+
     Returns
     -------
     SfmResult
         With ``meta["frame"]``: ``up_source`` ("ground" or "cameras"), ``ground_source``
-        ("ransac" or "lowest_points"), ``ground_inliers``, ``scale_source``,
-        ``camera_height_median`` (metres).
+        ("ransac", "lowest_points" or "sweep"), ``ground_inliers`` (RANSAC's), ``scale_source``,
+        ``camera_height_median`` (metres) and, with ``images``, ``sweep_contrast``.
     """
     from treeform.sfm.colmap import convergence_point
 
@@ -300,6 +312,15 @@ def to_tree_frame(result: SfmResult, *, origin=None, scale: float | None = None,
     up, up_source = (plane.normal, "ground") if angle <= max_up_angle_deg and enough else (cam_up, "cameras")
     if up_source == "cameras" and ground_source == "ransac":
         plane = ground_plane(result, up, seed=seed)
+    sweep = {}
+    if images is not None:
+        from treeform.sfm.sweep import sweep_ground
+
+        sw = sweep_ground(result, images, up)
+        sweep = {"sweep_contrast": round(sw.contrast, 4)}
+        if sw.contrast >= SWEEP_MIN_CONTRAST:
+            top = float(np.median(result.centers @ up))
+            plane, ground_source = Plane(np.asarray(up, np.float64), top - sw.depth, plane.inliers), "sweep"
     if origin is None:
         origin = plane.project(convergence_point(result)[0])[0]
     s = camera_height_scale(result, plane, eye_height=eye_height) if scale is None else float(scale)
@@ -307,5 +328,5 @@ def to_tree_frame(result: SfmResult, *, origin=None, scale: float | None = None,
     out.meta["frame"] = {"up_source": up_source, "ground_camera_up_angle_deg": round(angle, 3),
                          "ground_source": ground_source, "ground_inliers": plane.inliers,
                          "scale_source": "eye_height" if scale is None else "given",
-                         "camera_height_median": round(float(np.median(out.centers[:, 1])), 4)}
+                         "camera_height_median": round(float(np.median(out.centers[:, 1])), 4), **sweep}
     return out

@@ -67,7 +67,8 @@ def scale_warning(frame: dict, height_given: bool) -> str | None:
     """One line for the user when the metric scale rests on a weak ground plane, else None.
 
     ``frame`` is :func:`~treeform.sfm.to_tree_frame`'s ``meta["frame"]``; with ``--height`` the
-    ground does not set the scale and nothing is said.
+    ground does not set the scale and nothing is said, nor where the photos' plane sweep found
+    the ground (``ground_source`` "sweep").
 
     Examples
     --------
@@ -75,9 +76,11 @@ def scale_warning(frame: dict, height_given: bool) -> str | None:
     'the metric scale rests on a groun'
     >>> scale_warning({"ground_inliers": 5}, True) is None, scale_warning({"ground_inliers": 40}, False) is None
     (True, True)
+    >>> scale_warning({"ground_inliers": 5, "ground_source": "sweep"}, False) is None
+    True
     """
     n = frame.get("ground_inliers")
-    if height_given or n is None or n >= MIN_GROUND_POINTS:
+    if height_given or frame.get("ground_source") == "sweep" or n is None or n >= MIN_GROUND_POINTS:
         return None
     return (f"the metric scale rests on a ground plane through {n} SfM points (under {MIN_GROUND_POINTS}): "
             "the tree's height may be off by a factor of two or more; give --height for a reliable scale")
@@ -278,7 +281,8 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     with timer.stage("sfm"):
         sfm = run_sfm(views, seed=cfg.seed)
     with timer.stage("frame"):
-        sfm = to_tree_frame(sfm, eye_height=cfg.eye_height, seed=cfg.seed)
+        by_name = {v.name: v.image for v in views}
+        sfm = to_tree_frame(sfm, eye_height=cfg.eye_height, seed=cfg.seed, images=[by_name[n] for n in sfm.names])
     with timer.stage("matting"):
         labels, images, scales = _segment_views(views, sfm, cfg, masks)
         K = _scaled_K(sfm, scales)
