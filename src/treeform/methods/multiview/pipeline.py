@@ -410,7 +410,10 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "photos": len(views), "registered": sfm.n_cameras, "unregistered": list(sfm.unregistered),
         "sfm_points": len(sfm.points), "carved_cells": len(carved),
         "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
-        "leaves": len(foliage), "triangles": mesh.n_triangles, "tree_height_m": round(float(height), 4),
+        "leaves": len(foliage), "triangles": mesh.n_triangles,
+        # the model's own top above the ground (y = 0): the carved hull's (hull_height_m) stands higher,
+        # a tent over the crown that eye-level views cannot carve away
+        "tree_height_m": round(float(mesh.bounds()[1][1]), 4), "hull_height_m": round(float(height), 4),
         "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
         "scale_warning": scale_warning(sfm.meta.get("frame", {}), cfg.height is not None),
         "registration_warning": registration_warning(len(views), sfm.unregistered),
