@@ -389,6 +389,23 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             foliage, leaf_tex = _photo_leaves(foliage, sfm, images, labels, rng, cfg.seed)
     with timer.stage("mesh"):
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex, seed=cfg.seed)
+        if cfg.height is not None:
+            # --height is the tree's: the scale above made the carved hull that tall, and its top is a
+            # tent over the crown (eye-level views cannot carve it), so the model came out shorter.
+            # Everything is scaled about the foot (the origin, on the ground) until the model's top is
+            # the given height.
+            k = cfg.height / float(mesh.bounds()[1][1])
+            if abs(k - 1.0) > 1e-3:
+                skeleton = dataclasses.replace(skeleton, positions=skeleton.positions * k,
+                                               radius=None if skeleton.radius is None else skeleton.radius * k)
+                foliage = dataclasses.replace(foliage, positions=foliage.positions * k, size=foliage.size * k)
+                sfm = sfm.transformed(k, np.eye(3), np.zeros(3))
+                visible = dataclasses.replace(visible, positions=visible.positions * k,
+                                              radius=None if visible.radius is None else visible.radius * k)
+                carved = carved.transformed(k, np.zeros(3))
+                trunk_r, height = trunk_r * k, height * k
+                mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod], leaf_texture=leaf_tex,
+                                 seed=cfg.seed)
     with timer.stage("render"):
         # the leaves' colours are the photos', which already hold the day's light: lit again, they
         # render darker than the photos. Scale them (the tiles, or the cards' tints) until the model,
