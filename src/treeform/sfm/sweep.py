@@ -81,17 +81,23 @@ def _gray(img: np.ndarray, scale: float) -> np.ndarray:
     return g
 
 
-def _ncc(a: np.ndarray, b: np.ndarray, win: int):
-    """Local zero-mean normalised cross-correlation of two images (box window) and the local
-    standard deviations."""
+def _local_stats(a: np.ndarray, win: int) -> tuple[np.ndarray, np.ndarray]:
+    """Local mean and standard deviation of an image over a box window."""
     import cv2
 
-    k = (win, win)
-    ma, mb = cv2.blur(a, k), cv2.blur(b, k)
-    va = np.maximum(cv2.blur(a * a, k) - ma * ma, 0.0)
-    vb = np.maximum(cv2.blur(b * b, k) - mb * mb, 0.0)
-    cov = cv2.blur(a * b, k) - ma * mb
-    return cov / np.sqrt(va * vb + 1e-6), np.sqrt(va), np.sqrt(vb)
+    m = cv2.blur(a, (win, win))
+    return m, np.sqrt(np.maximum(cv2.blur(a * a, (win, win)) - m * m, 0.0))
+
+
+def _ncc(a: np.ndarray, a_stats, b: np.ndarray, win: int):
+    """Local zero-mean normalised cross-correlation of two images (box window; ``a``'s
+    :func:`_local_stats` given) and ``b``'s local standard deviation."""
+    import cv2
+
+    ma, sa = a_stats
+    mb, sb = _local_stats(b, win)
+    cov = cv2.blur(a * b, (win, win)) - ma * mb
+    return cov / np.sqrt((sa * sa) * (sb * sb) + 1e-6), sb
 
 
 def sweep_ground(result: SfmResult, images, up, *, size: int = 320, steps: int = 48, neighbours: int = 2,
@@ -159,8 +165,10 @@ def sweep_ground(result: SfmResult, images, up, *, size: int = 320, steps: int =
         rays = np.stack([xs + 0.5, ys + 0.5, np.ones_like(xs)], -1).reshape(-1, 3) @ np.linalg.inv(K).T
         rays = rays @ result.cam_to_world[i, :3, :3].T
         rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-        downs.append((rays @ up < -sin_min).reshape(g.shape))
-        grays.append(g)
+        stats = _local_stats(g, window)
+        # the photo's own textured pixels that look down: what each depth is scored on
+        downs.append((rays @ up < -sin_min).reshape(g.shape) & (stats[1] > 2.0))
+        grays.append((g, stats))
         Ks.append(K)
     d = np.linalg.norm(centers[:, None] - centers[None], axis=2)
     np.fill_diagonal(d, np.inf)
@@ -176,15 +184,15 @@ def sweep_ground(result: SfmResult, images, up, *, size: int = 320, steps: int =
             if not downs[i].any():
                 continue
             H = plane_homography(Ks[i], result.cam_to_world[i], Ks[j], result.cam_to_world[j], up, offset)
-            hh, ww = grays[i].shape
-            warped = cv2.warpPerspective(grays[j], H, (ww, hh), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+            (gi, stats), gj = grays[i], grays[j][0]
+            hh, ww = gi.shape
+            warped = cv2.warpPerspective(gj, H, (ww, hh), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                          borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
             inside = cv2.erode((warped >= 0).astype(np.uint8), np.ones((window, window), np.uint8)) > 0
-            ncc, sa, sb = _ncc(grays[i], warped, window)
-            textured = downs[i] & (sa > 2.0)
-            ok = inside & textured & (sb > 2.0)
+            ncc, sb = _ncc(gi, stats, warped, window)
+            ok = inside & downs[i] & (sb > 2.0)
             total += float(ncc[ok].sum())
-            count += int(textured.sum())
+            count += int(downs[i].sum())
         return total / count if count else 0.0
 
     lo, hi = range_

@@ -197,8 +197,9 @@ class LSystem:
         # same order as a scan of the whole string: the same result, without copying the grown
         # part of the string at every step).
         string: list = []
-        count = _append_split(string, self.axiom if axiom is None else axiom, rules)
-        split: dict = {}
+        start = list(self.axiom if axiom is None else axiom)
+        _append_split(string, start, _rewritable(start, rules))
+        split: dict = {}  # successor -> where its rewritable modules are: the same on every call
         for _ in range(steps):
             out: list = []
             changed = False
@@ -225,16 +226,9 @@ class LSystem:
                         succ = rule.choices[k][1]
                     mods = succ(*p)
                     at = split.get(succ)
-                    if at is None:  # where a successor's rewritable modules are: the same on every call
-                        at = split[succ] = tuple(j for j, m in enumerate(mods) if (m[0], len(m[1])) in rules)
-                    prev = 0
-                    for j in at:
-                        if j > prev:
-                            _append_run(out, mods[prev:j])
-                        out.append(mods[j])
-                        prev = j + 1
-                    if prev < len(mods):
-                        _append_run(out, mods[prev:])
+                    if at is None:
+                        at = split[succ] = _rewritable(mods, rules)
+                    _append_split(out, mods, at)
                     count += len(mods)
                     changed = True
                     break
@@ -250,19 +244,22 @@ class LSystem:
         return [m for item in string for m in (item if type(item) is list else (item,))]
 
 
-def _append_split(out: list, modules, rules: dict) -> int:
-    """Append ``modules`` to ``out`` as :meth:`LSystem.derive` keeps its string (each rewritable
-    module an item, the others gathered into runs: lists, one item each); returns their number."""
-    n = 0
-    for m in modules:
-        n += 1
-        if (m[0], len(m[1])) in rules:
-            out.append(m)
-        elif out and type(out[-1]) is list:
-            out[-1].append(m)
-        else:
-            out.append([m])
-    return n
+def _rewritable(modules, rules: dict) -> tuple:
+    """Indices of the modules some rule rewrites."""
+    return tuple(j for j, m in enumerate(modules) if (m[0], len(m[1])) in rules)
+
+
+def _append_split(out: list, modules: list, at) -> None:
+    """Append ``modules`` to ``out`` as :meth:`LSystem.derive` keeps its string: the rewritable
+    ones (indices ``at``) each an item, the runs between them as lists (:func:`_append_run`)."""
+    prev = 0
+    for j in at:
+        if j > prev:
+            _append_run(out, modules[prev:j])
+        out.append(modules[j])
+        prev = j + 1
+    if prev < len(modules):
+        _append_run(out, modules[prev:])
 
 
 def _append_run(out: list, run: list) -> None:
