@@ -23,6 +23,16 @@ PREFIX = ".venv/bin/treeform"
 # shorter runs of the slow commands: appended options override the README's values
 SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2", "--test-scenes", "8"], ("train", "species"): ["--epochs", "1"],
            ("train", "rbv"): ["--epochs", "1"]}
+# the abs search at 4 candidates instead of the README's 24 (same stages, a sixth of the models rendered)
+SHORTER_METHOD = {"abs": ["--candidates", "4"]}
+
+
+def shorter(argv: list[str]) -> list[str]:
+    """``argv`` with the options that cut a slow README command's run (appended: the last value wins)."""
+    extra = list(SHORTER.get(tuple(argv[:2]), []))
+    if "--method" in argv[:-1]:
+        extra += SHORTER_METHOD.get(argv[argv.index("--method") + 1], [])
+    return argv + extra
 
 
 def readme_commands() -> list[list[str]]:
@@ -65,7 +75,7 @@ def test_every_readme_command_runs_in_an_empty_folder(tmp_path):
     for argv in readme_commands():
         if argv[:1] == ["train"] and not has_torch:
             continue  # needs the train extra (torch); tests/learn/test_train.py covers it where present
-        argv = argv + SHORTER.get(tuple(argv[:2]), [])
+        argv = shorter(argv)
         proc = subprocess.run([sys.executable, "-m", "treeform", *argv], cwd=work, env=env, capture_output=True,
                               text=True, timeout=600)
         assert proc.returncode == 0, f"treeform {shlex.join(argv)} -> {proc.returncode}\n{proc.stderr[-2000:]}"

@@ -38,7 +38,7 @@ def test_seg_training_resumes_to_the_same_weights(tmp_path, tiny_data):
         assert photo_split(name) == "train"
         Image.fromarray(rng.integers(0, 255, (48, 64, 3)).astype(np.uint8)).save(photos / name)
     opts = dict(steps=4, batch=2, size=64, chunk=4, repeats=1, checkpoint_every=2, threads=1, width=8,
-                photos=photos, photo_fraction=0.5)
+                photos=photos, photo_fraction=0.5, test_scenes=16)
     a = train_seg(tiny_data, tmp_path / "a", test_data=tiny_data, **opts)
     with pytest.raises(KeyboardInterrupt):
         train_seg(tiny_data, tmp_path / "b", progress=_fail_at(3), **opts)  # killed after the step-2 checkpoint

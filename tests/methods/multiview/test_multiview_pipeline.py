@@ -14,14 +14,32 @@ pytest.importorskip("pycolmap", reason="pycolmap is not installed (multi-view Sf
 
 @pytest.fixture(scope="module")
 def run(gl, tmp_path_factory):
+    """The capture and its multiview run; SfM runs once for the module's runs of the same photos.
+
+    COLMAP is deterministic on the same photos and seed (tests/sfm/test_colmap.py checks it), and
+    the later runs here test what comes after it (other mattes, --height): they reuse the first
+    registration instead of spending SfM's time again.
+    """
+    import treeform.sfm as sfm_api
     from treeform.dataset.capture import synthetic_capture
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
+    registered = {}
+    run_sfm = sfm_api.run_sfm
+
+    def once(views, **kw):
+        key = (tuple(v.name for v in views), tuple(sorted(kw.items())))
+        if key not in registered:
+            registered[key] = run_sfm(views, **kw)
+        return registered[key]
+
     base = tmp_path_factory.mktemp("mv")
     cap = synthetic_capture(base / "capture", views=24, size=480, species="oak", seed=0)
-    res = reconstruct_multiview(cap.out / "images", out=base / "out", mask_size=320, leaves=1500, lod="low",
-                                segmenter="learned", seed=0, cells=200, surface_cells=100, leaf_texture="photo")
-    return cap, res, base / "out"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sfm_api, "run_sfm", once)
+        res = reconstruct_multiview(cap.out / "images", out=base / "out", mask_size=320, leaves=1500, lod="low",
+                                    segmenter="learned", seed=0, cells=200, surface_cells=100, leaf_texture="photo")
+        yield cap, res, base / "out"
 
 
 def test_outputs_and_cameras(run):
