@@ -67,6 +67,31 @@ def test_two_trunks_close_together_are_two_feet_but_a_root_flare_is_one():
     assert [f for _, f in trunk_feet(one)] == [(41.0, 109.0)]
 
 
+def test_a_learned_foot_on_a_rule_foots_trunk_is_that_foot_and_the_rules_stays():
+    """``--feet both``: the detector's foot a little aside on one wide, flared trunk is the rules'
+    foot (it split single trees into strips: Ulmus americana 1 four instances, now two), while a
+    learned foot under a trunk of its own still makes a tree."""
+    from treeform.segment.instances import merge_joined_feet
+    from treeform.segment.learned_feet import union_feet
+
+    m = np.zeros((120, 100), bool)
+    m[5:50, 10:90] = True       # the crowns, one piece
+    m[50:108, 38:46] = True     # a wide trunk, flaring at its foot
+    m[104:110, 36:48] = True
+    m[50:104, 70:73] = True     # a second trunk, standing apart
+    rules = trunk_feet(m)
+    assert [f for _, f in rules] == [(41.5, 109.0), (71.0, 103.0)]
+    m[60:100, 20:23] = True     # a third, thin one, hanging: the rules see no foot at its end
+    mark = lambda u, v: np.pad(np.ones((3, 3), bool), ((v - 2, 119 - v), (u - 1, 98 - u)))  # noqa: E731
+    learned = [(mark(47, 109), (47.0, 109.0), 0.6), (mark(21, 99), (21.0, 99.0), 0.5)]
+    both = union_feet(rules, learned, 2.0, 2.0)
+    assert len(both) == 4  # 5.5 px aside: the plain tolerance keeps the flare's foot as another tree
+    feet = [f for _, f in merge_joined_feet(m, both, fixed=len(rules))]
+    assert feet == [(21.0, 99.0), (41.5, 109.0), (71.0, 103.0)]  # the flare's learned foot joins the rules'
+    # among feet of one kind, the lower of two joined ones stays
+    assert [f for _, f in merge_joined_feet(m, [(rules[0][0], (41.5, 108.0)), both[2]])] == [(47.0, 109.0)]
+
+
 def test_the_ground_placement_puts_every_foot_back_on_its_pixel():
     rng = np.random.default_rng(3)
     feet = np.c_[rng.uniform(50, 590, 6), rng.uniform(250, 470, 6)]

@@ -218,18 +218,40 @@ def trunk_feet(mask: np.ndarray, wood: np.ndarray | None = None, *, ground: np.n
     # a branch's end whose wood runs on to a lower foot is that tree's branch, not a tree of its own
     feet = [(m, f) for m, f, w in feet
             if not any(w & w2 and f2[1] > f[1] + 1 for _, f2, w2 in feet)]
-    feet.sort(key=lambda t: t[1][0])
-    # two lowest points of one trunk's foot (a root flare, a fork at the ground) are one foot: close
-    # together and joined by the mask just above them; two trunks side by side stand apart there
+    return merge_joined_feet(mask, feet, narrow=narrow)
+
+
+def merge_joined_feet(mask: np.ndarray, feet: list, *, narrow: float = NARROW, fixed: int = 0) -> list[tuple]:
+    """Feet ``(marker, (u, v))`` of one cluster, those of one trunk made one, left to right.
+
+    Two lowest points of one trunk's foot (a root flare, a fork at the ground, or a rule's foot
+    and the detector's a little aside on a wide trunk) are one foot: at most ``narrow`` x the
+    cluster's height apart and joined by the mask within :data:`JOIN_DEPTH` x that height above
+    them (:func:`_joined_low`); two trunks side by side stand apart there. The markers join; the
+    foot that stays is the lower one, or, where one of the two is among the first ``fixed`` of
+    ``feet`` (the rules' feet, the learned detector's after them) and the other is not, that one.
+
+    >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[30:55, 22:26] = True; m[50:55, 20:29] = True
+    >>> a, b = np.zeros_like(m), np.zeros_like(m); a[50:55, 20:23] = True; b[50:55, 26:29] = True
+    >>> [f for _, f in merge_joined_feet(m, [(a, (21.0, 54.0)), (b, (27.0, 54.0))])]   # one flared trunk
+    [(21.0, 54.0)]
+    """
+    rows = np.flatnonzero(np.asarray(mask, bool).any(1))
+    if rows.size == 0:
+        return []
+    height = float(rows[-1] - rows[0] + 1)
+    narrow_px = max(3.0, narrow * height)
     depth = max(3, int(round(JOIN_DEPTH * height)))
-    merged: list = []
-    for comp, foot in feet:
+    merged: list = []  # (marker, foot, fixed)
+    order = sorted(range(len(feet)), key=lambda i: feet[i][1][0])
+    for comp, foot, fix in ((feet[i][0], feet[i][1], i < fixed) for i in order):
         if merged and abs(foot[0] - merged[-1][1][0]) <= narrow_px and _joined_low(mask, merged[-1][1], foot, depth):
-            prev, pfoot = merged[-1]
-            merged[-1] = (prev | comp, pfoot if pfoot[1] >= foot[1] else foot)
+            prev, pfoot, pfix = merged[-1]
+            keep = (pfoot if pfoot[1] >= foot[1] else foot) if pfix == fix else (pfoot if pfix else foot)
+            merged[-1] = (prev | comp, keep, pfix or fix)
         else:
-            merged.append((comp, foot))
-    return merged
+            merged.append((comp, foot, fix))
+    return [(comp, foot) for comp, foot, _ in merged]
 
 
 def _joined_low(mask: np.ndarray, f1: tuple, f2: tuple, depth: int) -> bool:
@@ -432,8 +454,10 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
         else:
             trunks = trunk_feet(cl, wood, ground=g)
             if feet == "both" and mine:
-                trunks = union_feet(trunks, [(m & cl, f, sc) for m, f, sc in mine], max(2.0, 0.012 * W),
-                                     max(2.0, 0.02 * H))
+                # one trunk's feet by the rules and by the detector (a wide trunk's flare) are one
+                trunks = merge_joined_feet(cl, union_feet(trunks, [(m & cl, f, sc) for m, f, sc in mine],
+                                                          max(2.0, 0.012 * W), max(2.0, 0.02 * H)),
+                                           fixed=len(trunks))
         if len(trunks) >= 2:
             parts = split_at_trunks(cl, trunks)
             found += [(part, foot) for part, (_, foot) in zip(parts, trunks) if part.any()]

@@ -101,7 +101,9 @@ def snap_feet(tree: np.ndarray, peaks, *, band: float = 0.012, reach: float = 0.
 
 def union_feet(rule_feet: list, learned: list, tol_u: float, tol_v: float) -> list:
     """Feet of the rules and of the detector together: a learned foot within ``tol_u`` columns and
-    ``tol_v`` rows of a rule foot is that foot (the rule's stays); the others join. Left to right.
+    ``tol_v`` rows of a rule foot is that foot (the rule's stays); the others join, after the
+    rules' feet (:func:`~treeform.segment.instances.merge_joined_feet` then makes one foot of
+    those on one trunk, keeping the rule's).
 
     Both are lowest points of the mask, so one trunk's two feet coincide within a few pixels,
     while a tree standing nearly behind another has its foot a little aside and higher.
@@ -110,4 +112,4 @@ def union_feet(rule_feet: list, learned: list, tol_u: float, tol_v: float) -> li
     for marker, foot, _ in learned:
         if not any(abs(foot[0] - f[0]) <= tol_u and abs(foot[1] - f[1]) <= tol_v for _, f in rule_feet):
             out.append((marker, foot))
-    return sorted(out, key=lambda t: t[1][0])
+    return out
