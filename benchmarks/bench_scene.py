@@ -91,10 +91,16 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--spacing", type=float, default=5.0)
     ap.add_argument("--write", type=Path, default=ROOT / "out" / "bench_scene.json")
-    ap.add_argument("--feet", default="rules", help="where the feet come from: rules, learned or both "
-                    "(find_tree_instances' feet=)")
-    ap.add_argument("--feet-threshold", type=float, default=0.4, help="lowest heatmap peak taken as a foot")
+    ap.add_argument("--feet", default=None, help="where the feet come from: rules, learned or both "
+                    "(find_tree_instances' feet=; default its DEFAULT_FEET)")
+    ap.add_argument("--feet-threshold", type=float, default=None,
+                    help="lowest heatmap peak taken as a foot (default: FEET_THRESHOLD of --feet)")
     args = ap.parse_args()
+    from treeform.segment.instances import DEFAULT_FEET, FEET_THRESHOLD
+
+    args.feet = args.feet or DEFAULT_FEET
+    if args.feet_threshold is None and args.feet != "rules":
+        args.feet_threshold = FEET_THRESHOLD[args.feet]
     sprites = load_cutouts(data_path("library"))
     rng = np.random.default_rng(args.seed)
     rows, times = [], []

@@ -185,9 +185,9 @@ def reconstruct(
                                                        "1.6; the scene's scale, unless --height gives the tallest "
                                                        "tree's)."),
     feet: Optional[FeetSource] = typer.Option(None, "--feet", help="--all-trees: where each tree's trunk foot comes "
-                                              "from: 'rules' (the mask's lowest points where wood rises; default), "
+                                              "from: 'rules' (the mask's lowest points where wood rises), "
                                               "'learned' (the foot detector feet.onnx; the rules where it finds none) "
-                                              "or 'both'."),
+                                              "or 'both' (default)."),
 ):
     """Single photo -> 3D tree (tree.glb, tree.obj, skeleton, preview.png, metrics.json)."""
     from treeform.cli.progress import print_summary
@@ -266,7 +266,7 @@ def reconstruct(
         kw["tree_height"] = height  # None: the scale comes from --camera-height
         res = run_api(reconstruct_all, photo, out=out, seed=seed, method_api=api, method=method.value,
                       camera_height=1.6 if camera_height is None else camera_height, inputs=(photo,),
-                      feet=(feet or FeetSource.rules).value,
+                      feet=feet.value if feet is not None else None,
                       stages=SCENE_STAGES, **kw)
         print_scene_summary(res)
         return

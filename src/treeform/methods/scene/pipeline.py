@@ -119,7 +119,7 @@ def _scene_render(placement, meshes: list, size: tuple) -> np.ndarray:
 
 def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope", tree_height: float | None = None,
                     camera_height: float = 1.6, fov_y: float = 40.0, max_size: int = 1280, tree_max_size: int = 640,
-                    seed: int = 0, weights=None, feet: str = "rules", progress: ProgressCallback | None = None,
+                    seed: int = 0, weights=None, feet: str | None = None, progress: ProgressCallback | None = None,
                     **method_options) -> SceneReconstruction:
     """Find every tree of a photo, reconstruct each, and place them together.
 
@@ -148,9 +148,10 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
         Tree ``k`` (from 0) is reconstructed with seed ``seed + k``.
     weights : path, optional
         Segmentation weights (default: the shipped ones).
-    feet : {'rules', 'learned', 'both'}
+    feet : {'rules', 'learned', 'both'}, optional
         Where each tree's trunk foot comes from (:func:`~treeform.segment.instances.find_tree_instances`):
-        the mask's rules, the learned foot detector, or both.
+        the mask's rules, the learned foot detector, or both (default:
+        :data:`~treeform.segment.instances.DEFAULT_FEET`).
     progress : callable, optional
         ``progress(stage, event, seconds)`` for :data:`SCENE_STAGES`.
     **method_options
@@ -172,8 +173,9 @@ def reconstruct_all(photo, *, out=None, method_api=None, method: str = "envelope
     from treeform.io.outputs import check_out_dir
     from treeform.methods._single_photo import as_photo, fit_photo
     from treeform.methods.scene.placement import place_on_ground
-    from treeform.segment.instances import find_tree_instances
+    from treeform.segment.instances import DEFAULT_FEET, find_tree_instances
 
+    feet = feet or DEFAULT_FEET
     if tree_height is not None:
         check_height(tree_height)
     seed = check_seed(seed)
