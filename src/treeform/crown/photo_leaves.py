@@ -340,6 +340,8 @@ def _card_tiles(foliage: Foliage, cards: np.ndarray, camera: Camera, image: np.n
     c = camera.project(sub.positions)
     a = camera.project(sub.positions + half * right)[:, :2] - c[:, :2]  # texture +s
     b = camera.project(sub.positions - half * up)[:, :2] - c[:, :2]  # texture +t (down)
+    past = ~vis & ((c[:, 0] < 0) | (c[:, 0] >= image.shape[1]) | (c[:, 1] < 0) | (c[:, 1] >= image.shape[0]))
+    c[past, :2] = _into_foliage(c[past, :2], alpha)  # a crown continued past the frame wears the crown in it
     facing = 0.5 * sub.size * camera.focal / np.maximum(c[:, 2], 1e-9)  # a camera-facing card's half size
     edge_on = (np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) < oblique * facing**2) | ~vis
     # oblique cards would stretch a sliver of the photo over the whole tile (streaks from the
@@ -367,6 +369,36 @@ def _card_tiles(foliage: Foliage, cards: np.ndarray, camera: Camera, image: np.n
     shape_alpha, detail_lum = shapes
     return _finish_tiles(sample, shape_alpha.astype(np.float32), detail_lum.astype(np.float32), pick,
                          np.asarray(dark, np.float32), np.float32(detail))
+
+
+def _into_foliage(uv: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Pixel positions (N, 2) (u, v) moved into the photo's foliage: a position past the frame is
+    mirrored into it at the edge (a crown continued past the frame, :mod:`treeform.crown.frame`, takes
+    the texture of the crown inside it), then one off the foliage (``alpha`` <= 0.5) goes to the
+    nearest foliage pixel. Unchanged where the photo shows no foliage at all.
+
+    >>> a = np.zeros((10, 10)); a[:, 5:] = 1.0
+    >>> _into_foliage(np.array([[7.5, -3.0], [12.0, 4.5], [1.5, 2.5]]), a).tolist()
+    [[7.5, 3.0], [8.0, 4.5], [5.5, 2.5]]
+    """
+    import scipy.ndimage as ndi
+
+    uv = np.array(uv, np.float64).reshape(-1, 2)
+    H, W = alpha.shape
+    off = alpha <= 0.5
+    if len(uv) == 0 or off.all():
+        return uv
+    for k, n in ((0, W), (1, H)):
+        x = uv[:, k]
+        x = np.where(x < 0, -x, np.where(x >= n, 2 * n - x, x))
+        uv[:, k] = np.clip(x, 0, n - 1e-3)
+    iu, iv = uv[:, 0].astype(np.int64), uv[:, 1].astype(np.int64)
+    bad = off[iv, iu]
+    if bad.any():
+        _, (ny, nx) = ndi.distance_transform_edt(off, return_indices=True)
+        uv[bad, 0] = nx[iv[bad], iu[bad]] + 0.5
+        uv[bad, 1] = ny[iv[bad], iu[bad]] + 0.5
+    return uv
 
 
 def choose_views(foliage: Foliage, cameras, masks, images=None, *,

@@ -158,15 +158,18 @@ def sample_rdm_shell(rdm, n: int, *, shell_power: float = 4.0, keep=None, seed=N
     return pts[:n]
 
 
-def visual_hull_contains(camera, mask: np.ndarray, points: np.ndarray) -> np.ndarray:
+def visual_hull_contains(camera, mask: np.ndarray, points: np.ndarray, offset: tuple = (0, 0)) -> np.ndarray:
     """Whether points project onto ``True`` pixels of ``mask`` seen by ``camera`` (its visual hull).
 
     Parameters
     ----------
     camera : Camera
     mask : ndarray, shape (H, W), bool
-        Same size as the camera's image.
+        The camera's image, or a larger canvas around it (see ``offset``).
     points : ndarray, shape (N, 3)
+    offset : (int, int)
+        ``(top, left)``: the camera's pixel (u, v) is ``mask[v + top, u + left]`` (a silhouette
+        continued past the frame, :func:`treeform.crown.frame.beyond_frame`).
 
     Returns
     -------
@@ -182,8 +185,8 @@ def visual_hull_contains(camera, mask: np.ndarray, points: np.ndarray) -> np.nda
     """
     uvz = camera.project(points)
     h, w = mask.shape
-    u = np.floor(uvz[:, 0]).astype(np.int64)
-    v = np.floor(uvz[:, 1]).astype(np.int64)
+    u = np.floor(uvz[:, 0]).astype(np.int64) + int(offset[1])
+    v = np.floor(uvz[:, 1]).astype(np.int64) + int(offset[0])
     ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
     out = np.zeros(len(uvz), bool)
     out[ok] = mask[v[ok], u[ok]]

@@ -71,6 +71,9 @@ class EnvelopeConfig:
     shell_leaves: float = 0.35
     """Share of the leaves sampled on the RDM's 3D shell (covers side and top views); the rest
     are spread evenly over the photo's crown pixels (covers the front view)."""
+    beyond_frame: bool = True
+    """Continue a crown the photo's top or side edges cut past them, rounded
+    (:func:`treeform.crown.frame.beyond_frame`), instead of cutting the model flat at the frame."""
     leaf_coverage: float = 3.0
     """Mean number of leaf cards over a crown pixel seen from the front; sets the card size."""
     lod: str = "medium"
@@ -105,6 +108,8 @@ class EnvelopeConfig:
         for name in ("depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent", "leaf_coverage"):
             check_positive(getattr(self, name), name)
         check_positive(self.relief_weight, "relief_weight", allow_zero=True)
+        if not isinstance(self.beyond_frame, bool):
+            raise InputError(f"beyond_frame: expected true or false, got {self.beyond_frame!r}")
         if not 0 <= self.shell_leaves <= 1:
             raise InputError(f"shell_leaves: expected a fraction in [0, 1], got {self.shell_leaves}")
         for name, lo, hi in (("max_size", 32, 8192), ("envelope_grid", 16, 1024), ("relief_levels", 1, 8),

@@ -7,6 +7,7 @@ writes the outputs atomically.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from contextlib import nullcontext
 from dataclasses import dataclass, field
@@ -133,20 +134,31 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         seg = segment_or_mask(image, user_mask, segmenter=cfg.segmenter, seed=cfg.seed)
         layout = tree_layout(seg)
         height, width = ph.shape
-        cam, mpp = photo_camera(width, height, layout, cfg.tree_height, cfg.fov_y)
+        # a crown the frame cuts goes on past it (rounded): the tree's height counts its continued top
+        from treeform.crown.frame import beyond_frame
+
+        crown_full, (ptop, pleft) = beyond_frame(layout.crown_mask) if cfg.beyond_frame else \
+            (layout.crown_mask, (0, 0))
+        top_row = min(layout.top_row, int(np.flatnonzero(crown_full.any(1))[0]) - ptop)
+        cam, mpp = photo_camera(width, height, dataclasses.replace(layout, top_row=top_row), cfg.tree_height,
+                                cfg.fov_y)
+        beyond = crown_full.copy()  # the continued crown only (outside the photo)
+        beyond[ptop:, pleft:pleft + width] = False
     with timer.stage("envelope"):
         from treeform.crown.envelope import inflate_envelope
 
-        env = inflate_envelope(layout.crown_mask, crown=cfg.crown, k=cfg.tangent_k, a=cfg.conical_a,
+        env = inflate_envelope(crown_full, crown=cfg.crown, k=cfg.tangent_k, a=cfg.conical_a,
                                grid_size=cfg.envelope_grid, depth_ratio=cfg.depth_ratio,
                                profile=cfg.profile)
-        world_verts = _pixels_to_world(cam, mpp, env.vertices)
+        env_uvz = env.vertices - np.array([pleft, ptop, 0.0])  # the photo's pixels (past its edges too)
+        front_z = env.front_z[ptop:ptop + height, pleft:pleft + width]
+        world_verts = _pixels_to_world(cam, mpp, env_uvz)
     with timer.stage("relief"):
         from treeform.crown.relief import relief_map
 
         relief = relief_map(image, layout.crown_mask, levels=cfg.relief_levels)
-        vu = np.clip(env.vertices[:, 0].astype(np.int64), 0, width - 1)
-        vv = np.clip(env.vertices[:, 1].astype(np.int64), 0, height - 1)
+        vu = np.clip(env_uvz[:, 0].astype(np.int64), 0, width - 1)
+        vv = np.clip(env_uvz[:, 1].astype(np.int64), 0, height - 1)
         h_vert = relief[vv, vu]
     with timer.stage("rdm"):
         import scipy.ndimage as ndi
@@ -154,27 +166,31 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         from treeform.crown.rdm import rdm_from_texels
         from treeform.render.cubemap import render_radial_cubemap
 
-        edt = ndi.distance_transform_edt(layout.crown_mask)
+        edt = ndi.distance_transform_edt(crown_full)
         cv_, cu_ = np.unravel_index(np.argmax(edt), edt.shape)
-        center = _pixels_to_world(cam, mpp, np.array([[cu_ + 0.5, cv_ + 0.5, 0.0]]))[0]
+        center = _pixels_to_world(cam, mpp, np.array([[cu_ - pleft + 0.5, cv_ - ptop + 0.5, 0.0]]))[0]
         radii = render_radial_cubemap(world_verts, env.faces, center, values=h_vert, rho=cfg.relief_weight,
                                       resolution=cfg.rdm_resolution, rotations_deg=tuple(cfg.rdm_rotations))
         rdm = rdm_from_texels(center, radii)
         r_mean = rdm.mean_radius()
     from treeform.crown.sampling import visual_hull_contains
 
-    hull_mask = ndi.binary_dilation(seg.tree_mask, iterations=1)
+    hull_mask = beyond.copy()  # the photo's tree, and the crown continued past the frame
+    hull_mask[ptop:, pleft:pleft + width] = ndi.binary_dilation(seg.tree_mask, iterations=1)
 
     def inside(p):
         ok = rdm.contains(p)
-        ok[ok] = visual_hull_contains(cam, hull_mask, p[ok])
+        ok[ok] = visual_hull_contains(cam, hull_mask, p[ok], offset=(ptop, pleft))
         return ok
 
     with timer.stage("attractors"):
         from treeform.growth.sampling import blue_noise_points
 
         lo, hi = rdm.bounds()
-        attractors = blue_noise_points(inside, (lo, hi), cfg.attractors, seed=rng)
+        # as many attractors in the photo's crown as without the crown past the frame (their density
+        # sets the branches' and the photo's view of them)
+        n_att = int(round(cfg.attractors * min(crown_full.sum() / max(layout.crown_mask.sum(), 1), 2.0)))
+        attractors = blue_noise_points(inside, (lo, hi), n_att, seed=rng)
     with timer.stage("colonize"):
         from treeform.growth.radii import branch_orders, pipe_model_radii
         from treeform.growth.space_colonization import space_colonization
@@ -226,10 +242,16 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         core = ndi.binary_erosion(leaf_mask, iterations=inset, border_value=1) if inset > 0 else leaf_mask
         # the crown's depth at each pixel comes from the RDM (relief, rotated copies): march rays
         crown_z = rdm_front_height(rdm, cam, dist, mpp, leaf_mask.shape)
-        crown_z = np.where(crown_z > 0, crown_z, env.front_z)
+        crown_z = np.where(crown_z > 0, crown_z, front_z)
         uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, crown_z,
                                    cfg.leaves - n_shell, seed=rng)
-        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: visual_hull_contains(cam, core, p), seed=rng)
+        # the shell's leaves also dress the crown past the frame (the photo shows none of them: the
+        # leaves it sees keep their number, within the same triangle budget)
+        hull_core = beyond.copy()
+        hull_core[ptop:, pleft:pleft + width] = core
+        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: visual_hull_contains(cam, hull_core, p,
+                                                                                        offset=(ptop, pleft)),
+                                     seed=rng)
         pts = np.concatenate([_pixels_to_world(cam, mpp, uvz), shell_pts])
         suv = cam.project(shell_pts)
         uvz = np.concatenate([uvz, np.column_stack([suv[:, :2], (dist - suv[:, 2]) / mpp])])
@@ -242,7 +264,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             fu = np.clip(uvz[:, 0].astype(np.int64), 0, width - 1)
             fv = np.clip(uvz[:, 1].astype(np.int64), 0, height - 1)
             zf = crown_z[fv, fu]
-            visible = uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)
+            in_frame = (uvz[:, 0] >= 0) & (uvz[:, 0] < width) & (uvz[:, 1] >= 0) & (uvz[:, 1] < height)
+            visible = (uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)) & in_frame
             d = foliage.positions - center
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
             if cfg.leaf_texture == "procedural":  # the photo is the texture otherwise (mesh stage)
