@@ -52,3 +52,16 @@ def test_bad_arguments_are_one_clear_error():
         beyond_frame(np.zeros(10, bool))
     with pytest.raises(InputError, match="reach"):
         beyond_frame(np.ones((10, 10), bool), reach=-1)
+
+
+def test_what_reaches_a_side_only_below_the_crowns_middle_is_not_continued():
+    """A hedge or a neighbour the mask took in at the crown's foot is not the crown cut by the frame."""
+    yy, xx = np.mgrid[:100, :80]
+    crown = (yy - 35) ** 2 + (xx - 40) ** 2 < 25 ** 2
+    crown[55:95, 38:42] = True   # the trunk
+    crown[75:95, 40:] = True     # a hedge from the trunk to the right edge, low down
+    assert beyond_frame(crown)[1] == (0, 0) and beyond_frame(crown)[0].shape == crown.shape
+    crown[20:50, 40:] = True     # the crown itself reaching the right edge: continued
+    padded, (top, left) = beyond_frame(crown)
+    assert top == 0 and left == 0 and padded.shape[1] > 80
+    assert not padded[75:95, 80:].any()  # not at the hedge's rows

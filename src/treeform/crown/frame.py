@@ -8,7 +8,9 @@ least-committal round shape: over each run of the edge the crown covers, a half 
 wide as the run and standing out a fixed share of that width (a round crown cut through its
 middle loses a half disc; one cut near its rim a shallow cap), at most ``reach`` of the crown's
 size, and the frame's corners bridged where the crown covers both edges there. The bottom
-edge is the ground and is never continued.
+edge is the ground and is never continued, nor is a run of a side that starts below the
+crown's middle height: a crown the side cuts is cut across its upper half, while what reaches
+a side only lower down is mostly a hedge, planters or a neighbouring tree the mask took in.
 
 Functions over arrays (masks in, masks out); the envelope route uses the result for the
 crown's shape, its branches and the leaves it cannot see in the photo.
@@ -103,11 +105,14 @@ def beyond_frame(mask: np.ndarray, *, cap: float = CAP_RATIO, reach: float = REA
         return m.copy(), (0, 0)
     ys, xs = np.nonzero(m)
     crown_h, crown_w = float(ys.max() - ys.min() + 1), float(xs.max() - xs.min() + 1)
+    middle = 0.5 * (ys.min() + ys.max())
     # the runs of each edge the crown covers, and how far each one's cap stands out
     caps = {}
     for side, edge, length, size in (("top", m[0], W, crown_h), ("left", m[:, 0], H, crown_w),
                                      ("right", m[:, -1], H, crown_w)):
         runs = [(a, b) for a, b in _runs(edge, max(1, int(0.02 * length))) if b - a >= max(2, min_run * length)]
+        if side != "top":  # a crown the side cuts is cut across its upper half; what touches the side only
+            runs = [(a, b) for a, b in runs if a < middle]  # lower down is a hedge, a neighbour or clutter
         caps[side] = [(a, b, min(cap * (b - a), reach * size)) for a, b in runs]
     depth = {s: int(np.ceil(max([h for *_, h in c], default=0.0))) for s, c in caps.items()}
     top, left, right = depth["top"], depth["left"], depth["right"]
