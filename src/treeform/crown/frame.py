@@ -135,11 +135,10 @@ def beyond_frame(mask: np.ndarray, *, cap: float = CAP_RATIO, reach: float = REA
     for side, col0, col1 in (("left", 0, left), ("right", left + W, left + W + right)):
         if top == 0 or col1 == col0 or not (m[0, 0] if side == "left" else m[0, -1]):
             continue
-        band = grown.copy()
+        c0, c1 = (0, col1 + 2 * top) if side == "left" else (col0 - 2 * top, out.shape[1])
         near = np.zeros_like(out)
-        near[:top + max(2, top), max(0, col0 - 2 * top if side == "right" else 0):
-             min(out.shape[1], col1 + 2 * top if side == "left" else out.shape[1])] = True
-        pts = np.argwhere((band | out) & near)[:, ::-1].astype(np.int32)
+        near[:2 * top, max(0, c0):c1] = True
+        pts = np.argwhere((grown | out) & near)[:, ::-1].astype(np.int32)
         if len(pts) >= 3:
             hull = np.zeros(out.shape, np.uint8)
             cv2.fillConvexPoly(hull, cv2.convexHull(pts), 1)

@@ -142,8 +142,12 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         top_row = min(layout.top_row, int(np.flatnonzero(crown_full.any(1))[0]) - ptop)
         cam, mpp = photo_camera(width, height, dataclasses.replace(layout, top_row=top_row), cfg.tree_height,
                                 cfg.fov_y)
-        beyond = crown_full.copy()  # the continued crown only (outside the photo)
-        beyond[ptop:, pleft:pleft + width] = False
+
+        def on_canvas(frame_mask):
+            """A mask of the photo on the continued crown's canvas, the continued crown around it."""
+            out = crown_full.copy()
+            out[ptop:, pleft:pleft + width] = frame_mask
+            return out
     with timer.stage("envelope"):
         from treeform.crown.envelope import inflate_envelope
 
@@ -175,8 +179,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         r_mean = rdm.mean_radius()
     from treeform.crown.sampling import visual_hull_contains
 
-    hull_mask = beyond.copy()  # the photo's tree, and the crown continued past the frame
-    hull_mask[ptop:, pleft:pleft + width] = ndi.binary_dilation(seg.tree_mask, iterations=1)
+    hull_mask = on_canvas(ndi.binary_dilation(seg.tree_mask, iterations=1))  # and the crown past the frame
 
     def inside(p):
         ok = rdm.contains(p)
@@ -247,8 +250,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                    cfg.leaves - n_shell, seed=rng)
         # the shell's leaves also dress the crown past the frame (the photo shows none of them: the
         # leaves it sees keep their number, within the same triangle budget)
-        hull_core = beyond.copy()
-        hull_core[ptop:, pleft:pleft + width] = core
+        hull_core = on_canvas(core)
         shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: visual_hull_contains(cam, hull_core, p,
                                                                                         offset=(ptop, pleft)),
                                      seed=rng)
