@@ -92,6 +92,28 @@ def test_a_learned_foot_on_a_rule_foots_trunk_is_that_foot_and_the_rules_stays()
     assert [f for _, f in merge_joined_feet(m, [(rules[0][0], (41.5, 108.0)), both[2]])] == [(47.0, 109.0)]
 
 
+def test_a_thin_trunk_the_mask_cut_keeps_its_crown_and_its_learned_foot():
+    """A thin trunk over a lawn that the mask lost twice: its lowest stretch (the detector saw the
+    trunk go on down: its foot, far below the rules', stays) and a few rows under the crown (the
+    split still hands that crown to this trunk, not to the neighbour whose crown it touches)."""
+    from treeform.segment.instances import merge_joined_feet
+
+    m = np.zeros((120, 120), bool)
+    m[10:40, 10:50] = True      # the thin trunk's crown ...
+    m[15:50, 45:110] = True     # ... touching a big neighbour's crown
+    m[43:80, 29:31] = True      # the thin trunk: a gap of 3 rows under its crown, its lowest 30 rows lost
+    m[50:110, 76:80] = True     # the neighbour's trunk
+    rules = trunk_feet(m)
+    assert [f for _, f in rules] == [(29.5, 79.0), (77.5, 109.0)]
+    learned = (np.pad(np.ones((3, 3), bool), ((107, 10), (28, 89))), (29.0, 109.0))
+    feet = merge_joined_feet(m, [*rules, learned], fixed=len(rules))
+    assert [f for _, f in feet] == [(29.0, 109.0), (77.5, 109.0)]
+    thin, big = split_at_trunks(m, feet, reach=4)
+    assert thin[20, 15] and thin[25, 40] and big[25, 100] and ((thin | big) == m).all() and not (thin & big).any()
+    without_reach = split_at_trunks(m, feet)[0]
+    assert not without_reach[20, 15]  # grown inside the mask only, the crown went to the neighbour
+
+
 def test_the_ground_placement_puts_every_foot_back_on_its_pixel():
     rng = np.random.default_rng(3)
     feet = np.c_[rng.uniform(50, 590, 6), rng.uniform(250, 470, 6)]

@@ -239,7 +239,9 @@ def merge_joined_feet(mask: np.ndarray, feet: list, *, narrow: float = NARROW, f
     cluster's height apart and joined by the mask within :data:`JOIN_DEPTH` x that height above
     them (:func:`_joined_low`); two trunks side by side stand apart there. The markers join; the
     foot that stays is the lower one, or, where one of the two is among the first ``fixed`` of
-    ``feet`` (the rules' feet, the learned detector's after them) and the other is not, that one.
+    ``feet`` (the rules' feet, the learned detector's after them) and the other is not, that one
+    unless the other stands more than :data:`JOIN_DEPTH` x the height lower: the detector saw the
+    trunk go on down where the mask lost its lowest part (a thin trunk over a lawn).
 
     >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[30:55, 22:26] = True; m[50:55, 20:29] = True
     >>> a, b = np.zeros_like(m), np.zeros_like(m); a[50:55, 20:23] = True; b[50:55, 26:29] = True
@@ -257,7 +259,9 @@ def merge_joined_feet(mask: np.ndarray, feet: list, *, narrow: float = NARROW, f
     for comp, foot, fix in ((feet[i][0], feet[i][1], i < fixed) for i in order):
         if merged and abs(foot[0] - merged[-1][1][0]) <= narrow_px and _joined_low(mask, merged[-1][1], foot, depth):
             prev, pfoot, pfix = merged[-1]
-            keep = (pfoot if pfoot[1] >= foot[1] else foot) if pfix == fix else (pfoot if pfix else foot)
+            keep = pfoot if pfoot[1] >= foot[1] else foot  # the lower one
+            if pfix != fix and abs(pfoot[1] - foot[1]) <= depth:
+                keep = pfoot if pfix else foot
             merged[-1] = (prev | comp, keep, pfix or fix)
         else:
             merged.append((comp, foot, fix))
@@ -292,14 +296,17 @@ def _joined_low(mask: np.ndarray, f1: tuple, f2: tuple, depth: int) -> bool:
     return a > 0 and a == b
 
 
-def split_at_trunks(mask: np.ndarray, trunks: list) -> list[np.ndarray]:
+def split_at_trunks(mask: np.ndarray, trunks: list, *, reach: int = 0) -> list[np.ndarray]:
     """Split one cluster between its trunks: each pixel goes to the trunk nearest it inside the mask.
 
     The trunks' markers grow together, one pixel ring at a time, through the cluster (a
     watershed of a flat relief: a geodesic Voronoi partition), so two crowns that touch part
     along the line halfway between their trunks. A thin trunk and a thick one grow alike (a
     watershed of the distance transform lets the trunk that reaches deepest into the crowns
-    take them all). With fewer than two trunks the cluster is one tree.
+    take them all). With ``reach`` > 0 they grow through the mask dilated by that many pixels,
+    so a gap the mask left between a thin trunk and its crown does not hand that crown to the
+    neighbour's trunk; the parts are the mask's pixels. With fewer than two trunks the cluster
+    is one tree.
 
     >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[8:32, 35:75] = True
     >>> m[30:55, 23:27] = True; m[32:50, 53:57] = True
@@ -315,8 +322,13 @@ def split_at_trunks(mask: np.ndarray, trunks: list) -> list[np.ndarray]:
     markers = np.zeros(mask.shape, np.int32)
     for k, (comp, _) in enumerate(trunks, start=1):
         markers[comp & mask & (markers == 0)] = k
-    lab = watershed(np.zeros(mask.shape, np.float32), markers, mask=mask)
-    return [lab == k for k in range(1, len(trunks) + 1)]
+    grow = mask
+    if reach > 0:
+        import cv2
+
+        grow = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    lab = watershed(np.zeros(mask.shape, np.float32), markers, mask=grow)
+    return [(lab == k) & mask for k in range(1, len(trunks) + 1)]
 
 
 def _windows(length: int, side: int, stride: float) -> np.ndarray:
@@ -471,7 +483,7 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
                                                           max(2.0, 0.012 * W), max(2.0, 0.02 * H)),
                                            fixed=len(trunks))
         if len(trunks) >= 2:
-            parts = split_at_trunks(cl, trunks)
+            parts = split_at_trunks(cl, trunks, reach=r)
             found += [(part, foot) for part, (_, foot) in zip(parts, trunks) if part.any()]
         else:
             found.append((cl, trunks[0][1] if trunks else None))
