@@ -217,3 +217,28 @@ def test_bezier_outline_leaves():
     assert widths.argmax() not in (0, 63) and widths.max() > 10
     with pytest.raises(InputError):
         leaf_texture(64, outline="spline")
+
+
+def test_opaque_cards_trim_each_card_to_its_leaves():
+    """What ignores alpha (the impostor's radial map) should see the leaves, not the cards' transparent margins."""
+    from dataclasses import replace
+
+    from treeform.geometry import opaque_cards
+
+    f = random_foliage(random_parent_tree(50), 30, seed=2)
+    tex = np.zeros((64, 64, 4), np.uint8)
+    tex[16:48, 8:40, 3] = 255  # the leaf fills rows 16-47, columns 8-39: half the card along u and v
+    p = leaf_cards(f, texture=tex)
+    q = opaque_cards(p).reshape(-1, 4, 3)
+    full = p.positions.reshape(-1, 4, 3).astype(np.float64)
+    # each card keeps its plane and is half as wide and tall, its centre moved to the leaf's
+    assert np.allclose(np.linalg.norm(q[:, 1] - q[:, 0], axis=1), 0.5 * f.size, rtol=1e-5)
+    assert np.allclose(np.linalg.norm(q[:, 3] - q[:, 0], axis=1), 0.5 * f.size, rtol=1e-5)
+    assert np.allclose(np.einsum("nkc,nc->nk", q - full[:, :1], f.normals), 0.0, atol=1e-5)
+    expect = full[:, 0] + (8 + 16) / 64 * (full[:, 1] - full[:, 0]) + (1 - 32 / 64) * (full[:, 3] - full[:, 0])
+    assert np.allclose(q.mean(1), expect, atol=1e-5)  # u from the left edge; v = 1 at the card's bottom corner 0
+    # an opaque texture changes nothing; a part that is not cards is left alone
+    solid = np.full((8, 8, 4), 255, np.uint8)
+    assert np.allclose(opaque_cards(leaf_cards(f, texture=solid)), p.positions, atol=1e-6)
+    assert opaque_cards(replace(p, indices=p.indices[:, ::-1])) is None
+    assert opaque_cards(replace(p, material=replace(p.material, texture=None))) is None

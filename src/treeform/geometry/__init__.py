@@ -11,7 +11,8 @@
 """
 
 from treeform.geometry.curves import bspline_skeleton
-from treeform.geometry.leaves import CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, texture_coverage
+from treeform.geometry.leaves import (CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, opaque_cards,
+                                      texture_coverage)
 from treeform.geometry.lod import LOD_PRESETS, foliage_budget, plan_lod, tree_mesh
 from treeform.geometry.normal_maps import normal_map_from_height, texture_height
 from treeform.geometry.textures import FOLIAGE_KINDS, foliage_coverage, texture_sizes, tree_textures
@@ -32,6 +33,7 @@ __all__ = [
     "leaf_material",
     "leaf_texture",
     "normal_map_from_height",
+    "opaque_cards",
     "plan_lod",
     "texture_coverage",
     "texture_height",

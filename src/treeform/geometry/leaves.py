@@ -16,7 +16,8 @@ from treeform.geometry.textures import LEAF_TEXTURE_SIZE
 from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, MeshPart
 
-__all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "card_frames", "leaf_cards", "leaf_material", "leaf_texture", "texture_coverage"]
+__all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "card_frames", "leaf_cards", "leaf_material", "leaf_texture",
+           "opaque_cards", "texture_coverage"]
 
 TEXTURE_KINDS = ("cluster", "leaf", "needles", "scales")
 """Kinds of :func:`leaf_texture`: a broadleaf cluster, one leaf, a needle cluster, a scale spray."""
@@ -34,6 +35,87 @@ def texture_coverage(texture: np.ndarray) -> float:
     if texture.ndim != 3 or texture.shape[2] != 4:
         raise InputError(f"texture: expected an (H, W, 4) array, got shape {texture.shape}")
     return float(np.mean(texture[..., 3] > 127))
+
+
+def opaque_cards(part: MeshPart) -> np.ndarray | None:
+    """An alpha-tested part's cards shrunk to the opaque box of their texture, as (V, 3) positions.
+
+    A leaf card is a quad whose texture is transparent around the leaf or cluster it shows; what
+    ignores alpha (a radial distance map rasterized from the triangles, a bounding volume) sees
+    the whole quad and stands out by those margins. Each card's corners are moved, within its
+    own plane, to the corners of the box holding the texels of its tile (its corners' UV
+    rectangle: its own tile of an atlas, or the whole texture) whose alpha passes the
+    material's cutoff; a card with no such texel shrinks to its centre.
+
+    Parameters
+    ----------
+    part : MeshPart
+        Quads of 4 consecutive vertices drawn as triangles (0, 1, 2) and (0, 2, 3), with UVs on
+        the corners of an axis-aligned rectangle and an (H, W, 4) texture, as :func:`leaf_cards`
+        and the photo-leaf atlas write them.
+
+    Returns
+    -------
+    ndarray, shape (V, 3), float64, or None
+        The moved positions (UVs, indices unchanged); None when ``part`` is not such a set of
+        cards (no texture with alpha, no UVs, other triangles).
+
+    Examples
+    --------
+    A card whose texture is opaque only in its left half keeps that half:
+
+    >>> tex = np.zeros((8, 8, 4), np.uint8); tex[:, :4, 3] = 255
+    >>> pos = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], float)
+    >>> uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+    >>> part = MeshPart(pos, np.tile([0.0, 0.0, 1.0], (4, 1)), uv, np.ones((4, 4)), np.array([[0, 1, 2], [0, 2, 3]]),
+    ...                 material=Material(texture=tex, alpha_mode="MASK"))
+    >>> opaque_cards(part)[:, 0].tolist()
+    [0.0, 1.0, 1.0, 0.0]
+    """
+    tex, uv = part.material.texture, part.uvs
+    n_v = part.n_vertices
+    if tex is None or np.ndim(tex) != 3 or np.shape(tex)[2] != 4 or uv is None or n_v == 0 or n_v % 4:
+        return None
+    n = n_v // 4
+    idx = np.asarray(part.indices, np.int64).reshape(-1)
+    if idx.size != 6 * n or not np.array_equal(idx.reshape(n, 6) - 4 * np.arange(n)[:, None],
+                                               np.broadcast_to([0, 1, 2, 0, 2, 3], (n, 6))):
+        return None
+    uv = np.asarray(uv, np.float64).reshape(n, 4, 2)
+    P = np.asarray(part.positions, np.float64).reshape(n, 4, 3)
+    lo, hi = uv.min(1), uv.max(1)
+    span = hi - lo
+    if np.any(span <= 0):
+        return None
+    s = (uv - lo[:, None]) / span[:, None]  # each corner's place in its tile: 0 or 1 along u and v
+    corner = np.rint(s).astype(np.int64)
+    if np.abs(s - corner).max() > 1e-3 or np.any(np.sort(corner[..., 0] + 2 * corner[..., 1], axis=1) != [0, 1, 2, 3]):
+        return None
+    H, W = tex.shape[:2]
+    cutoff = float(part.material.alpha_cutoff if part.material.alpha_cutoff is not None else 0.5)
+    opaque = np.asarray(tex)[..., 3] >= cutoff * 255.0
+    box = np.zeros((n, 4))  # (s0, s1, t0, t1): the opaque box in tile coordinates
+    tiles, inverse = np.unique(np.round(np.c_[lo, hi] * 65536.0).astype(np.int64), axis=0, return_inverse=True)
+    for k, key in enumerate(tiles):
+        u0, v0, u1, v1 = key / 65536.0
+        c0, c1 = int(np.floor(u0 * W)), max(int(np.ceil(u1 * W)), int(np.floor(u0 * W)) + 1)
+        r0, r1 = int(np.floor(v0 * H)), max(int(np.ceil(v1 * H)), int(np.floor(v0 * H)) + 1)
+        a = opaque[max(0, r0):min(H, r1), max(0, c0):min(W, c1)]
+        rows, cols = np.flatnonzero(a.any(1)), np.flatnonzero(a.any(0))
+        if rows.size == 0:
+            box[inverse.reshape(-1) == k] = (0.5, 0.5, 0.5, 0.5)
+            continue
+        uu = (max(0, c0) + np.array([cols[0], cols[-1] + 1])) / W
+        vv = (max(0, r0) + np.array([rows[0], rows[-1] + 1])) / H
+        box[inverse.reshape(-1) == k] = np.clip(np.r_[(uu - u0) / (u1 - u0), (vv - v0) / (v1 - v0)], 0.0, 1.0)
+    # the card's corners by place: P[i, j] at s = i along u, t = j along v; positions bilinear in (s, t)
+    order = np.argsort(corner[..., 0] + 2 * corner[..., 1], axis=1)
+    Q = np.take_along_axis(P, order[..., None], axis=1)  # (n, 4, 3): (0, 0), (1, 0), (0, 1), (1, 1)
+    ss = box[:, None, 0] + s[..., 0] * (box[:, None, 1] - box[:, None, 0])
+    tt = box[:, None, 2] + s[..., 1] * (box[:, None, 3] - box[:, None, 2])
+    out = ((1 - ss) * (1 - tt))[..., None] * Q[:, None, 0] + (ss * (1 - tt))[..., None] * Q[:, None, 1] \
+        + ((1 - ss) * tt)[..., None] * Q[:, None, 2] + (ss * tt)[..., None] * Q[:, None, 3]
+    return out.reshape(-1, 3)
 
 
 # --------------------------------------------------------------------------- leaf layout

@@ -155,9 +155,14 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         leafy = [p for p in mesh.parts if p.material.alpha_mode != "OPAQUE" and p.n_vertices] or mesh.parts
         lp = np.concatenate([p.positions for p in leafy]).astype(np.float64)
         center = 0.5 * (lp.min(0) + lp.max(0))  # the crown's box centre
+        from treeform.geometry import opaque_cards
+
         verts, tris, off = [], [], 0
         for p in mesh.parts:
-            verts.append(p.positions.astype(np.float64))
+            # leaf cards as far as their leaves go: the radial map ignores alpha, and the cards'
+            # transparent margins stood out of the mesh's silhouette all round
+            trimmed = opaque_cards(p) if p.material.alpha_mode != "OPAQUE" else None
+            verts.append(trimmed if trimmed is not None else p.positions.astype(np.float64))
             tris.append(p.indices.astype(np.int64) + off)
             off += p.n_vertices
         verts = np.concatenate(verts)
