@@ -107,3 +107,28 @@ def quilt(canvas, wsum, fixed, target, source, cand_y, cand_x, win_y, win_x, pat
                 for c in range(3):
                     canvas[y, x, c] = (canvas[y, x, c] * old + source[sy + i, sx + j, c] * w) / (old + w)
                 wsum[y, x] = old + w
+
+
+@nb.njit(cache=True, nogil=True)
+def frontmost_squares(u, v, depth, half, use, h, w):
+    """(M,) bool: cards nearest in at least one pixel, each an axis-aligned square of half side
+    ``half`` about (u, v) on an (h, w) image, drawn nearest first (cards with ``use`` False skipped)."""
+    m = u.shape[0]
+    taken = np.zeros((h, w), np.bool_)
+    seen = np.zeros(m, np.bool_)
+    order = np.argsort(depth)
+    for k in range(m):
+        i = order[k]
+        if not use[i]:
+            continue
+        r = max(half[i], 0.5)
+        u0 = max(0, int(np.floor(u[i] - r)))
+        u1 = min(w, int(np.ceil(u[i] + r)))
+        v0 = max(0, int(np.floor(v[i] - r)))
+        v1 = min(h, int(np.ceil(v[i] + r)))
+        for y in range(v0, v1):
+            for x in range(u0, u1):
+                if not taken[y, x]:
+                    taken[y, x] = True
+                    seen[i] = True
+    return seen

@@ -63,13 +63,18 @@ def face_camera(foliage: Foliage, camera: Camera, which, rng, scatter: float = 0
     return Foliage(foliage.positions, normals, foliage.up, foliage.size, foliage.color, foliage.node)
 
 
-def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: float = 2.0,
+                pixels: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Which cards the photo's camera sees, by a depth buffer of the cards, and a shade for the others.
 
-    The image is cut into cells of about a card's size; a card whose centre projects onto
-    ``mask`` is seen when it lies within ``band`` card sizes behind the nearest card of its
-    cell. A hidden card takes a shade from 1 (at the front of its cell) to 0.55 (half the
-    crown's depth or more behind it), like the other routes' cards deep in the crown.
+    A card whose centre projects onto ``mask`` is seen where it is the nearest card in at
+    least one pixel, each card drawn as the square of its size on the image, nearest first (a
+    painter's depth buffer). With ``pixels=False`` the image is cut into cells of about a
+    card's size instead, and a card is seen when it lies within ``band`` card sizes behind
+    the nearest card of its cell (coarser: a card behind a gap between the front cards, or a
+    small card beside a large one, is taken for hidden). A hidden card takes a shade from 1
+    (at the front of its cell) to 0.55 (half the crown's depth or more behind it), like the
+    other routes' cards deep in the crown.
 
     Parameters
     ----------
@@ -79,7 +84,9 @@ def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: flo
     mask : ndarray, shape (H, W), bool
         The tree in the photo (the camera's image).
     band : float
-        Depth, in card sizes, behind the frontmost card that still shows.
+        Depth, in card sizes, behind the frontmost card that still shows (cells only).
+    pixels : bool
+        Decide by the pixels each card covers (default), not by cells.
 
     Returns
     -------
@@ -88,12 +95,17 @@ def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: flo
 
     Examples
     --------
+    A card in front, one far behind it, one just behind it, and one just behind it but half
+    beside it:
+
     >>> cam = Camera(64, 64, 40.0, (0, 0, 10.0), (0, 0, 0), (0, 1, 0))
-    >>> f = Foliage([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 0.9]], [[0, 0, 1]] * 3, [[0, 1, 0]] * 3, [0.2] * 3,
-    ...             [[1, 1, 1]] * 3)
+    >>> f = Foliage([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 0.9], [0.1, 0, 0.9]], [[0, 0, 1]] * 4, [[0, 1, 0]] * 4,
+    ...             [0.2] * 4, [[1, 1, 1]] * 4)
     >>> vis, shade = camera_sees(f, cam, np.ones((64, 64), bool))
     >>> vis.tolist(), bool(shade[1] < 0.7)
-    ([True, False, True], True)
+    ([True, False, False, True], True)
+    >>> camera_sees(f, cam, np.ones((64, 64), bool), pixels=False)[0].tolist()  # cells: near enough behind
+    [True, False, True, True]
     """
     mask = np.asarray(mask, bool)
     if mask.shape != (camera.height, camera.width):
@@ -116,7 +128,12 @@ def camera_sees(foliage: Foliage, camera: Camera, mask: np.ndarray, *, band: flo
     front = np.full(k.max() + 1, np.inf)
     np.minimum.at(front, k[inside], depth[inside])
     behind = depth - front[k]
-    visible = inside & (behind <= band * foliage.size)
+    if pixels:
+        from treeform.crown._kernels import frontmost_squares
+
+        visible = inside & frontmost_squares(uvz[:, 0], uvz[:, 1], depth, 0.5 * px, inside, h, w)
+    else:
+        visible = inside & (behind <= band * foliage.size)
     spread = float(np.percentile(depth, 95) - np.percentile(depth, 5)) if m > 1 else 1.0
     far = np.clip(np.where(np.isfinite(behind), behind, spread) / max(0.5 * spread, 1e-9), 0.0, 1.0)
     shade = np.where(visible, 1.0, 1.0 - 0.45 * far)

@@ -267,7 +267,12 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             fv = np.clip(uvz[:, 1].astype(np.int64), 0, height - 1)
             zf = crown_z[fv, fu]
             in_frame = (uvz[:, 0] >= 0) & (uvz[:, 0] < width) & (uvz[:, 1] >= 0) & (uvz[:, 1] < height)
+            # seen: near the envelope's front, or the nearest card in some pixel (a depth buffer of
+            # the cards: the cards in front of the envelope and those behind its gaps)
+            from treeform.crown.photo_leaves import camera_sees
+
             visible = (uvz[:, 2] >= zf - np.maximum(2 * size / mpp, 0.3 * zf)) & in_frame
+            visible |= camera_sees(foliage, cam, np.ones((height, width), bool))[0]
             d = foliage.positions - center
             shade = 0.55 + 0.45 * np.clip(np.linalg.norm(d, axis=1) / np.maximum(rdm.lookup(d), 1e-6), 0, 1)
             if cfg.leaf_texture == "procedural":  # the photo is the texture otherwise (mesh stage)

@@ -109,36 +109,6 @@ def foliage_reach(sk2d, crown_mask: np.ndarray) -> list:
     return out
 
 
-def _front_cards(foliage, uvz: np.ndarray, inside: np.ndarray, mask: np.ndarray, mpp: float):
-    """Which cards the photo's camera sees, and a shade for those it does not (§3.5's revolved crown).
-
-    The crown is the silhouette revolved about each row's centre, so at pixel (u, v) its front
-    lies ``sqrt(r_v**2 - (u - c_v)**2)`` in front of the axis (r_v, c_v: the row's half-width and
-    centre). A card projecting onto the mask is visible when it lies within a band behind that
-    front (twice its size, or 30 % of the front's depth); the others take a shade from 0.55 at
-    the back to 1 at the front, like the envelope route's cards deep in the crown.
-
-    Returns
-    -------
-    visible : ndarray (M,) bool
-    shade : ndarray (M,) float in [0.55, 1]
-    """
-    from treeform.crown.layout import row_extents
-
-    h = mask.shape[0]
-    rows, left, right = row_extents(mask)
-    centre, half = 0.5 * (left + right), np.maximum(0.5 * (right - left + 1), 1.0)
-    v = np.clip(np.floor(uvz[:, 1]).astype(np.int64), 0, h - 1)
-    dx = uvz[:, 0] - centre[v]
-    front = np.sqrt(np.maximum(half[v] ** 2 - dx ** 2, 0.0)) * mpp
-    z = foliage.positions[:, 2]
-    band = np.maximum(2.0 * foliage.size, 0.3 * front)
-    visible = inside & (z >= front - band)
-    depth = half[v] * mpp
-    shade = np.where(visible, 1.0, 0.55 + 0.45 * np.clip((z + depth) / np.maximum(2 * depth, 1e-9), 0.0, 1.0))
-    return visible, shade
-
-
 def row_half_widths(mask: np.ndarray) -> np.ndarray:
     """(H,) half of each row's extent in ``mask`` (pixels), the max over a window of 2 % of the
     mask's height (0 for empty rows): the depth the revolved crown may have at that row."""
@@ -356,14 +326,15 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                               "source": Path(ph.source).name if ph.source else None, "n_leaves": len(foliage)})
         photo_leaves = cfg.leaf_texture == "photo" and len(foliage) > 0
         if len(foliage):
+            from treeform.crown.photo_leaves import camera_sees, face_camera
             from treeform.crown.sampling import visual_hull_contains
 
             uvz = cam.project(foliage.positions)
             inside = visual_hull_contains(cam, tree_mask, foliage.positions)
-            visible, shade = _front_cards(foliage, uvz, inside, tree_mask, mpp)
+            # the cards nearest the camera in some pixel (a depth buffer of the cards) are what the
+            # photo shows: they face it and wear its patches; the others are shaded by depth
+            visible, shade = camera_sees(foliage, cam, tree_mask)
             if photo_leaves:  # the cards the camera sees face it: each shows its patch of the photo unstretched
-                from treeform.crown.photo_leaves import face_camera
-
                 foliage = face_camera(foliage, cam, visible, cfg.seed).with_colors(np.ones((len(foliage), 3)))
             else:  # leaf colours from the photo where a card projects onto the crown
                 foliage = color_leaves(foliage, uvz[:, :2], inside, image,
