@@ -108,10 +108,12 @@ def test_a_thin_trunk_the_mask_cut_keeps_its_crown_and_its_learned_foot():
     learned = (np.pad(np.ones((3, 3), bool), ((107, 10), (28, 89))), (29.0, 109.0))
     feet = merge_joined_feet(m, [*rules, learned], fixed=len(rules))
     assert [f for _, f in feet] == [(29.0, 109.0), (77.5, 109.0)]
-    thin, big = split_at_trunks(m, feet, reach=4)
+    import scipy.ndimage as ndi
+
+    thin, big = split_at_trunks(m, feet, within=ndi.binary_dilation(m, iterations=4))  # the clustering's reach
     assert thin[20, 15] and thin[25, 40] and big[25, 100] and ((thin | big) == m).all() and not (thin & big).any()
-    without_reach = split_at_trunks(m, feet)[0]
-    assert not without_reach[20, 15]  # grown inside the mask only, the crown went to the neighbour
+    inside_only = split_at_trunks(m, feet)[0]
+    assert not inside_only[20, 15]  # grown inside the mask only, the crown went to the neighbour
 
 
 def test_the_ground_placement_puts_every_foot_back_on_its_pixel():

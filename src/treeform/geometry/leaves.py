@@ -94,20 +94,18 @@ def opaque_cards(part: MeshPart) -> np.ndarray | None:
     H, W = tex.shape[:2]
     cutoff = float(part.material.alpha_cutoff if part.material.alpha_cutoff is not None else 0.5)
     opaque = np.asarray(tex)[..., 3] >= cutoff * 255.0
-    box = np.zeros((n, 4))  # (s0, s1, t0, t1): the opaque box in tile coordinates
     tiles, inverse = np.unique(np.round(np.c_[lo, hi] * 65536.0).astype(np.int64), axis=0, return_inverse=True)
+    tile_box = np.full((len(tiles), 4), 0.5)  # (s0, s1, t0, t1): the opaque box in tile coordinates
     for k, key in enumerate(tiles):
         u0, v0, u1, v1 = key / 65536.0
-        c0, c1 = int(np.floor(u0 * W)), max(int(np.ceil(u1 * W)), int(np.floor(u0 * W)) + 1)
-        r0, r1 = int(np.floor(v0 * H)), max(int(np.ceil(v1 * H)), int(np.floor(v0 * H)) + 1)
-        a = opaque[max(0, r0):min(H, r1), max(0, c0):min(W, c1)]
+        c0, r0 = max(0, int(np.floor(u0 * W))), max(0, int(np.floor(v0 * H)))
+        a = opaque[r0:min(H, max(int(np.ceil(v1 * H)), r0 + 1)), c0:min(W, max(int(np.ceil(u1 * W)), c0 + 1))]
         rows, cols = np.flatnonzero(a.any(1)), np.flatnonzero(a.any(0))
-        if rows.size == 0:
-            box[inverse.reshape(-1) == k] = (0.5, 0.5, 0.5, 0.5)
-            continue
-        uu = (max(0, c0) + np.array([cols[0], cols[-1] + 1])) / W
-        vv = (max(0, r0) + np.array([rows[0], rows[-1] + 1])) / H
-        box[inverse.reshape(-1) == k] = np.clip(np.r_[(uu - u0) / (u1 - u0), (vv - v0) / (v1 - v0)], 0.0, 1.0)
+        if rows.size:  # else the card shrinks to its centre
+            uu = (c0 + np.array([cols[0], cols[-1] + 1])) / W
+            vv = (r0 + np.array([rows[0], rows[-1] + 1])) / H
+            tile_box[k] = np.clip(np.r_[(uu - u0) / (u1 - u0), (vv - v0) / (v1 - v0)], 0.0, 1.0)
+    box = tile_box[inverse.reshape(-1)]
     # the card's corners by place: P[i, j] at s = i along u, t = j along v; positions bilinear in (s, t)
     order = np.argsort(corner[..., 0] + 2 * corner[..., 1], axis=1)
     Q = np.take_along_axis(P, order[..., None], axis=1)  # (n, 4, 3): (0, 0), (1, 0), (0, 1), (1, 1)

@@ -296,17 +296,17 @@ def _joined_low(mask: np.ndarray, f1: tuple, f2: tuple, depth: int) -> bool:
     return a > 0 and a == b
 
 
-def split_at_trunks(mask: np.ndarray, trunks: list, *, reach: int = 0) -> list[np.ndarray]:
+def split_at_trunks(mask: np.ndarray, trunks: list, *, within: np.ndarray | None = None) -> list[np.ndarray]:
     """Split one cluster between its trunks: each pixel goes to the trunk nearest it inside the mask.
 
     The trunks' markers grow together, one pixel ring at a time, through the cluster (a
     watershed of a flat relief: a geodesic Voronoi partition), so two crowns that touch part
     along the line halfway between their trunks. A thin trunk and a thick one grow alike (a
     watershed of the distance transform lets the trunk that reaches deepest into the crowns
-    take them all). With ``reach`` > 0 they grow through the mask dilated by that many pixels,
-    so a gap the mask left between a thin trunk and its crown does not hand that crown to the
-    neighbour's trunk; the parts are the mask's pixels. With fewer than two trunks the cluster
-    is one tree.
+    take them all). With ``within`` (a region holding the mask, e.g. the mask dilated by a few
+    pixels) they grow through that region, so a gap the mask left between a thin trunk and its
+    crown does not hand that crown to the neighbour's trunk; the parts are the mask's pixels.
+    With fewer than two trunks the cluster is one tree.
 
     >>> m = np.zeros((60, 80), bool); m[5:30, 5:45] = True; m[8:32, 35:75] = True
     >>> m[30:55, 23:27] = True; m[32:50, 53:57] = True
@@ -322,11 +322,7 @@ def split_at_trunks(mask: np.ndarray, trunks: list, *, reach: int = 0) -> list[n
     markers = np.zeros(mask.shape, np.int32)
     for k, (comp, _) in enumerate(trunks, start=1):
         markers[comp & mask & (markers == 0)] = k
-    grow = mask
-    if reach > 0:
-        import cv2
-
-        grow = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    grow = mask if within is None else (np.asarray(within, bool) | mask)
     lab = watershed(np.zeros(mask.shape, np.float32), markers, mask=grow)
     return [(lab == k) & mask for k in range(1, len(trunks) + 1)]
 
@@ -464,8 +460,8 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
     import cv2
 
     near = cv2.dilate(tree.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
-    clusters, n = ndi.label(near, structure=np.ones((3, 3)))
-    clusters = np.where(tree, clusters, 0)
+    grown, n = ndi.label(near, structure=np.ones((3, 3)))  # each cluster and the LINK radius around it
+    clusters = np.where(tree, grown, 0)
     learned = snap_feet(tree, peaks) if peaks is not None else []
     found = []
     for k in range(1, n + 1):
@@ -483,7 +479,7 @@ def find_tree_instances(image: np.ndarray, *, weights=None, min_height: float = 
                                                           max(2.0, 0.012 * W), max(2.0, 0.02 * H)),
                                            fixed=len(trunks))
         if len(trunks) >= 2:
-            parts = split_at_trunks(cl, trunks, reach=r)
+            parts = split_at_trunks(cl, trunks, within=grown == k)  # across the gaps the clustering bridges
             found += [(part, foot) for part, (_, foot) in zip(parts, trunks) if part.any()]
         else:
             found.append((cl, trunks[0][1] if trunks else None))
