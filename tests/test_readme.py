@@ -21,7 +21,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = ".venv/bin/treeform"
 # shorter runs of the slow commands: appended options override the README's values
-SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2", "--test-scenes", "8"], ("train", "species"): ["--epochs", "1"],
+SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2", "--chunk", "2", "--test-scenes", "8"], ("train", "species"): ["--epochs", "1"],
            ("train", "rbv"): ["--epochs", "1"]}
 # the abs search at 4 candidates instead of the README's 24 (same stages, a sixth of the models rendered)
 SHORTER_METHOD = {"abs": ["--candidates", "4"]}

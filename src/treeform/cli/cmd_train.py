@@ -47,6 +47,8 @@ def seg_cmd(
                                     "thin trees weigh as much as large crowns)."),
     repeats: int = typer.Option(2, "--repeats", help="Passes (with flips) over each round's composed scenes; more "
                                 "when the optimiser outruns the scene composition (a GPU)."),
+    chunk: int = typer.Option(256, "--chunk", help="Scenes composed per round (held in memory together; a short run "
+                              "needs no more than steps x batch / repeats)."),
     test_scenes: int = typer.Option(400, "--test-scenes", min=2, max=100000,
                                     help="Scenes of the fixed test split scored at the end."),
 ):
@@ -57,7 +59,7 @@ def seg_cmd(
     m = run_api(train_seg, data, out, test_data=test_data, cutouts=cutouts, photos=photos, steps=steps, batch=batch,
                 seed=seed, device=device, workers=workers, init=str(init) if init else "", lr=lr,
                 fine_stride=fine_stride, refine=refine, photo_tree_fraction=photo_trees, noise_negatives=noise,
-                size=size, width=width, repeats=repeats, bush_fraction=bushes, sparse_boost=sparse_boost,
+                size=size, width=width, repeats=repeats, chunk=chunk, bush_fraction=bushes, sparse_boost=sparse_boost,
                 tree_dice=tree_dice, test_scenes=test_scenes, display=TrainProgress("seg"),
                 inputs=(("--data", data), ("--test-data", test_data), ("--cutouts", cutouts), ("--photos", photos),
                         ("--init", init)))

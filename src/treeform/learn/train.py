@@ -65,7 +65,7 @@ class SegTrainConfig:
     wood_weight: float = 3.0
     """Cross-entropy weight of wood pixels (thin, rare) and of the wood Dice term."""
     chunk: int = 256
-    """Scenes composed per round (each round's scenes are used for chunk / batch steps... twice)."""
+    """Scenes composed per round (each round's scenes make ``chunk * repeats / batch`` steps)."""
     repeats: int = 2
     """Passes over each round's scenes (with flips) before the next round."""
     cutout_fraction: float = 0.35
