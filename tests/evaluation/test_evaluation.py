@@ -60,6 +60,25 @@ def test_novel_views_score_one_for_the_same_tree_and_see_a_wrong_depth(gl):
     assert s["iou_side"] < 0.4 and s["iou_top"] < 0.4
 
 
+def test_a_multiview_tree_is_scored_where_its_cameras_place_it(gl):
+    """Its trunk run under the true ground neither shrinks nor lowers its crown in the views (the crown
+    in place is what the photos all around measured), and its height error is the route's own."""
+    from types import SimpleNamespace
+
+    from treeform.evaluation import novel_view_ious
+    from treeform.evaluation.scores import AlignedTree, aligned_view_mesh, canonical_mesh
+    from treeform.structures import Mesh
+
+    crown = _box((0.0, 7.0, 0.0), np.array([2.0, 3.0, 2.0], np.float32))
+    trunk = _box((0.0, 2.0, 0.0), np.array([0.2, 2.0, 0.2], np.float32), name="bark")
+    sunk = _box((0.0, 0.5, 0.0), np.array([0.2, 3.5, 0.2], np.float32), name="bark")  # 3 m under the ground
+    truth = Mesh([crown, trunk])
+    case = SimpleNamespace(gt_mesh=truth, gt_skeleton=SimpleNamespace(positions=np.zeros((1, 3))), azimuth_deg=0.0)
+    rec = AlignedTree(Mesh([crown, sunk]), SimpleNamespace(positions=np.array([[0.0, -3.0, 0.0]])))
+    s = novel_view_ious(canonical_mesh(truth, (0.0, 0.0, 0.0)), aligned_view_mesh(rec, case), size=64)
+    assert s["iou_side"] > 0.9 and s["iou_top"] > 0.95, s  # scaled to the true height about its base: 0.39
+
+
 def test_canonical_mesh_turns_the_camera_onto_plus_z():
     from treeform.evaluation.scores import canonical_mesh
     from treeform.structures import Mesh

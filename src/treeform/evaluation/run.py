@@ -130,7 +130,8 @@ def run_case(name: str, methods: list, *, seed: int = 0, size: int = 256, view_s
 
     ``folder``: where the case's pictures go (photo, true mask, each method's front and side
     view) and, with ``glb``, the true tree and each reconstruction as GLBs in the photo
-    camera's frame at the true height (what the report's 3D viewer shows side by side).
+    camera's frame as they are scored (a single-photo tree at the true height, a multi-view tree
+    as its cameras place it; what the report's 3D viewer shows side by side).
 
     Returns
     -------

@@ -5,8 +5,10 @@ All figures are plain floats (JSON-ready); a score the case cannot support is ab
 - front silhouette (seed 004 eq. 3 and IoU) in the photo's frame, against the true mask and
   against the method's own segmentation, so the gap shows what segmentation costs;
 - novel views: both trees in the photo camera's frame (the true one turned by minus the
-  camera azimuth, trunk bases at the origin, the reconstruction scaled to the true height),
-  silhouettes from 90°, 180° and above through the same near-orthographic camera, IoU;
+  camera azimuth, trunk bases at the origin; a single-photo reconstruction scaled to the true
+  height about its own base, a multi-view one as its registered cameras place it in the
+  truth's frame), silhouettes from 90°, 180° and above through the same near-orthographic
+  camera, IoU;
 - RBV error per level: mean absolute difference of the normalised radii, in % (seed 003
   Table 1), reconstruction's RBV vs the true one in that frame;
 - tree-form metric distances (seed 003 §6): relative error of height, trunk diameter, LAI (each
@@ -280,14 +282,16 @@ def align_multiview(res, cameras: dict) -> tuple[AlignedTree, dict]:
 
 
 def aligned_view_mesh(tree: AlignedTree, case):
-    """The aligned tree in the first photo camera's frame, about the true trunk base, at the true height.
+    """The aligned tree in the first photo camera's frame, about the true trunk base, as aligned.
 
-    A single-photo reconstruction knows its tree only relative to its own trunk base, so it is
-    compared about that base; the aligned multi-view tree stands where the route put it in
-    the world, so a crown placed right over a trunk base placed wrong still matches.
+    A single-photo reconstruction knows its tree only relative to its own trunk base and not its
+    size, so it is compared about that base at the true height; the aligned multi-view tree
+    stands where, and as large as, the similarity of its cameras onto the true ones puts it, so
+    a crown placed right over a trunk base placed wrong still matches. (Scaling it to the true
+    height about its own base, as before, shrank such a tree toward the ground: a birch capture
+    whose trunk the route ran 6.5 m under the true ground scored side IoU 0.18, 0.50 as placed.)
     """
-    return canonical_mesh(tree.mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg,
-                          scale=reconstruction_scale(tree, case))
+    return canonical_mesh(tree.mesh, case.gt_skeleton.positions[0], azimuth_deg=case.azimuth_deg)
 
 
 def score_multiview(res, case, *, view_size: int = 160) -> dict:
@@ -296,9 +300,11 @@ def score_multiview(res, case, *, view_size: int = 160) -> dict:
     The same scores as :func:`score_reconstruction` for the same truth, so the methods share
     one table: the front silhouette is the aligned tree drawn by the first photo's true
     camera against that photo's true mask; the novel views, RBV and tree-form errors are taken
-    in that photo camera's frame. The height is the route's own metric estimate (its
-    ``rel_err_height`` scores the scale from the cameras held at eye height); the views compare
-    shapes at the true height, as for every method. Also ``registration_rate`` and
+    in that photo camera's frame, the tree where and as large as the similarity of its cameras
+    onto the true ones places it (:func:`aligned_view_mesh`). The height is the route's own
+    metric estimate: ``rel_err_height`` compares its ``tree_height_m`` (the scale from the
+    cameras held at eye height, or the ground the photos show) with the true tree's top above
+    its base. Also ``registration_rate`` and
     ``camera_position_err`` (median, fraction of the capture's size). There is no own-mask
     score: the route keeps no per-photo matte.
 
@@ -337,4 +343,11 @@ def score_multiview(res, case, *, view_size: int = 160) -> dict:
         for i, e in enumerate(rbv_errors(tree.skeleton, case.rbv, azimuth_deg=case.azimuth_deg)):
             out[f"rbv_err_l{i + 1}"] = e
     out.update(_form_errors(tree, case))
+    # the aligned tree has the truth's scale (the cameras' similarity); the route's own is its metrics'
+    h_gt = _height(case.gt_mesh, float(case.gt_skeleton.positions[0][1]))
+    h_rec = float(res.metrics.get("tree_height_m", math.nan))
+    if math.isfinite(h_rec) and h_gt > 0:
+        out["rel_err_height"] = round(abs(h_rec - h_gt) / h_gt, 4)
+    else:
+        out.pop("rel_err_height", None)
     return out
