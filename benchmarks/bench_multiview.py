@@ -112,7 +112,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="keep the reconstruction here")
     ap.add_argument("--json", type=Path, default=None, help="write the scores here")
     ap.add_argument("--no-peer", action="store_true", help="skip pc-skeletor")
-    ap.add_argument("--leaf-texture", default="procedural", choices=("photo", "procedural"))
+    ap.add_argument("--leaf-texture", default="photo", choices=("photo", "procedural"))
     a = ap.parse_args(argv)
 
     from scipy.spatial import cKDTree

@@ -17,10 +17,10 @@ def multiview(
     seed: int = seed_option(),
     leaves: int = typer.Option(15000, "--leaves", help="Number of leaf clusters (most on the crown surface the photos see)."),
     lod: Lod = typer.Option(Lod.medium, "--lod", help="Level of detail (triangle budget)."),
-    leaf_texture: LeafTexture = typer.Option(LeafTexture.procedural, "--leaf-texture", help="Leaf cards: drawn "
-                                             "clusters tinted with the photos' colours ('procedural', default) or "
-                                             "the photos' own crown, each card from the photo that sees it best and "
-                                             "carved against every view ('photo': sharper, high-resolution photos)."),
+    leaf_texture: LeafTexture = typer.Option(LeafTexture.photo, "--leaf-texture", help="Leaf cards: the photos' "
+                                             "own crown, each card from the photo that sees it best and carved "
+                                             "against every view ('photo', default), or drawn clusters tinted with "
+                                             "the photos' colours ('procedural': a smaller GLB)."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),

@@ -119,14 +119,15 @@ def test_too_few_photos_is_one_clear_error(tmp_path):
 
 
 def test_user_mattes_replace_the_segmenter(run, tmp_path):
-    """The capture's true mattes (--masks) instead of the segmenter, the default procedural leaf
-    clusters, and --height: the model (not the carved hull, whose top is a tent over the crown) is
+    """The capture's true mattes (--masks) instead of the segmenter, procedural leaf clusters, and
+    --height: the model (not the carved hull, whose top is a tent over the crown) is
     that tall, standing on the ground, the cameras scaled with it."""
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
     cap, first, _ = run
     res = reconstruct_multiview(cap.out / "images", masks=cap.out / "truth" / "labels", mask_size=320, leaves=500,
-                                lod="low", seed=0, cells=200, surface_cells=100, height=12.0)  # a coarser hull
+                                lod="low", seed=0, cells=200, surface_cells=100, height=12.0,
+                                leaf_texture="procedural")  # a coarser hull
     top = float(res.mesh.bounds()[1][1])
     assert res.metrics["tree_height_m"] == pytest.approx(12.0, abs=1e-3) and top == pytest.approx(12.0, abs=1e-3)
     assert res.skeleton.positions[0, 1] == 0.0 and res.metrics["scale_from"] == "height"

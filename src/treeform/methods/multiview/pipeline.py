@@ -18,8 +18,10 @@ Stages, each one call into a domain folder or a sibling module:
    the visible skeleton toward the leaf points (seed 002 grows its replication blocks
    "constrained by the leaf points"); radii by the pipe model, the trunk at its measured width.
 7. **leaves** (§6): most leaf clusters on the crown's surface as the views' silhouettes carve
-   it, the rest on the grown twigs; each coloured from the photos at the nearest leaf point,
-   then calibrated by rendering so the model's leaves have the photos' colours.
+   it, the rest on the grown twigs; each card wears the photo that sees it best, carved texel
+   by texel against every view's matte (``leaf_texture='photo'``, the default), or is a drawn
+   cluster coloured from the photos at the nearest leaf point, then calibrated by rendering
+   so the model's leaves have the photos' colours (``'procedural'``).
 8. mesh, previews from three input cameras, metrics, export (tree.glb ...,
    cameras.json, points.ply).
 """
