@@ -20,9 +20,9 @@ def _look_at(c, target):
     return T
 
 
-def _ground_views(n=8, eye=1.6, ring=10.0, scale=1.0, size=(320, 240)):
-    """Photos of a textured ground plane (y = 0) from a ring of cameras at eye height, in a world
-    ``scale`` times the metric one (an SfM model's units)."""
+def _ground_views(n=8, eye=1.6, ring=10.0, scale=1.0, size=(320, 240), target_y=3.0):
+    """Photos of a textured ground plane (y = 0) from a ring of cameras at eye height looking at the
+    axis ``target_y`` metres up, in a world ``scale`` times the metric one (an SfM model's units)."""
     import cv2
 
     rng = np.random.default_rng(0)
@@ -35,7 +35,7 @@ def _ground_views(n=8, eye=1.6, ring=10.0, scale=1.0, size=(320, 240)):
     Ts, imgs = [], []
     for a in np.linspace(0, 2 * np.pi, n, endpoint=False):
         c = np.array([ring * np.cos(a), eye, ring * np.sin(a)])
-        T = _look_at(c, np.array([0.0, 3.0, 0.0]))  # looking at a crown's height: the ground fills the bottom
+        T = _look_at(c, np.array([0.0, target_y, 0.0]))  # at a crown's height: the ground fills the bottom
         R, C = T[:3, :3], T[:3, 3]
         H = K @ (R.T @ M - np.outer(R.T @ C, [0, 0, 1]))  # texel -> pixel
         img = cv2.warpPerspective(tex, H, (w, h), flags=cv2.INTER_LINEAR, borderValue=128)
@@ -87,3 +87,23 @@ def test_bad_input():
         sweep_ground(res, imgs[:2], [0, 1, 0])
     with pytest.raises(InputError, match="camera's"):
         sweep_ground(res, [im[:100] for im in imgs], [0, 1, 0])
+
+
+def test_a_phone_tilted_up_at_a_tall_tree_still_finds_the_ground():
+    """Framing a tall tree leaves no ground 8 degrees below the horizon in the photos: the sweep widens
+    to shallower rays (SWEEP_DEPRESSIONS) instead of leaving the metric scale to a few stray SfM points."""
+    from dataclasses import replace
+
+    from treeform.sfm import to_tree_frame
+
+    res, imgs = _ground_views(target_y=4.8)  # the frame's bottom row looks 7 degrees down
+    assert sweep_ground(res, imgs, [0.0, 1.0, 0.0], min_depression_deg=8.0).contrast < 0.04
+    rng = np.random.default_rng(1)
+    stray = np.c_[rng.uniform(-5, 5, 8), np.full(8, -4.0), rng.uniform(-5, 5, 8)]  # a sparse model's points, 4 m low
+    res = replace(res, points=stray, colors=np.zeros((8, 3), np.uint8), errors=np.zeros(8),
+                  tracks=[np.zeros((2, 3))] * 8)
+    out = to_tree_frame(res, images=imgs)
+    frame = out.meta["frame"]
+    assert frame["ground_source"] == "sweep" and frame["sweep_depression_deg"] == 5.0
+    # metres: the cameras 1.6 m above the true ground put the 10-m ring at 10 m (on the stray points' plane: 2.9 m)
+    assert np.median(np.hypot(out.centers[:, 0], out.centers[:, 2])) == pytest.approx(10.0, rel=0.03)
