@@ -343,7 +343,8 @@ def score_multiview(res, case, *, view_size: int = 160) -> dict:
         for i, e in enumerate(rbv_errors(tree.skeleton, case.rbv, azimuth_deg=case.azimuth_deg)):
             out[f"rbv_err_l{i + 1}"] = e
     out.update(_form_errors(tree, case))
-    # the aligned tree has the truth's scale (the cameras' similarity); the route's own is its metrics'
+    # _form_errors measured the aligned tree, whose scale is the truth's (the cameras' similarity): its
+    # height error would only be the shape's; the route's own metric estimate is in its metrics
     h_gt = _height(case.gt_mesh, float(case.gt_skeleton.positions[0][1]))
     h_rec = float(res.metrics.get("tree_height_m", math.nan))
     if math.isfinite(h_rec) and h_gt > 0:
