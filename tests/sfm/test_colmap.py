@@ -155,3 +155,47 @@ def test_retrieval_pairs_find_photos_of_the_same_place():
     pairs = retrieval_pairs(desc, k=2, words=32, seed=0)
     assert pairs and all(i % 3 == j % 3 for i, j in pairs)
     assert retrieval_pairs(desc, k=2, words=32, seed=0) == pairs
+
+
+def _similar(model, keep, s=2.0, angle=0.7, t=(3.0, -1.0, 5.0), tilt_deg=0.0, rng=None):
+    """The cameras ``keep`` of ``model`` in another similarity frame (COLMAP's is arbitrary), each
+    camera turned by ``tilt_deg`` about a random axis (a wrong registration)."""
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix()
+    c2w = []
+    for k in keep:
+        T = model.cam_to_world[k].copy()
+        turn = Rotation.from_rotvec(np.radians(tilt_deg) * Rotation.random(random_state=rng).apply([1.0, 0, 0]))
+        T[:3, :3] = R @ T[:3, :3] @ turn.as_matrix()
+        T[:3, 3] = s * R @ T[:3, 3] + t
+        c2w.append(T)
+    out = _model(c2w, s * model.points @ R.T + t)
+    out.names = [model.names[k] for k in keep]
+    return out
+
+
+def test_the_relaxed_model_is_kept_only_where_it_agrees_with_the_first():
+    from treeform.sfm.colmap import AGREE_ROTATION_DEG, _second_opinion
+
+    rng = np.random.default_rng(0)
+    ring = _model([_look_at([4 * np.sin(a), 1.6, 4 * np.cos(a)], [0, 0.5, 0]) for a in np.linspace(0, 6, 12)],
+                  rng.normal(0, 0.5, (200, 3)) + [0, 0.5, 0])
+    first = _similar(ring, range(6), s=1.0, angle=0.0, t=(0, 0, 0))
+    # all 12 photos, the first 6 where the first model has them (another frame)
+    more = _similar(ring, range(12))
+    verdict = _second_opinion(first, more, 12)
+    assert verdict["kept"] and verdict["common"] == 6 and verdict["rotation_median_deg"] < 0.01
+    # the same count, each camera turned by 3 degrees: a wrong model of more photos
+    wrong = _similar(ring, range(12), tilt_deg=3 * AGREE_ROTATION_DEG, rng=1)
+    assert not _second_opinion(first, wrong, 12)["kept"]
+    # a wrong place for one camera the first model holds
+    moved = _similar(ring, range(12))
+    moved.cam_to_world[2, :3, 3] += 0.5
+    assert not _second_opinion(first, moved, 12)["kept"]
+    # no more photos than the first: nothing to gain
+    assert not _second_opinion(first, _similar(ring, range(6)), 12)["kept"]
+    # no first model: kept from half the photos, if its geometry is sound
+    assert _second_opinion(None, _similar(ring, range(6)), 12)["kept"]
+    assert not _second_opinion(None, _similar(ring, range(5)), 12)["kept"]
+    assert not _second_opinion(None, None, 12)["kept"]
