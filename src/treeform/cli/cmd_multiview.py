@@ -42,7 +42,7 @@ def multiview(
                f"{m['nodes']} branch nodes ({m['visible_nodes']} seen), {m['leaves']} leaves, "
                f"silhouette IoU {m['silhouette_iou_median']:.2f} (median over the views), "
                f"{m['total_seconds']:.1f} s -> {out}")
-    for key in ("registration_warning", "scale_warning"):
+    for key in ("registration_warning", "consistency_warning", "scale_warning"):
         if m.get(key):
             typer.echo(f"warning: {m[key]}", err=True)
     if impostor:

@@ -78,6 +78,14 @@ def test_model_matches_the_views(run):
     # every photo registered: no registration warning either
     assert (m["registration_warning"] is None) == (m["registered"] == m["photos"])
     assert m["silhouette_iou_median"] > 0.15  # far from the issue's 0.8: see the issue note
+    # every registered photo scored against the model; on this right SfM model at most a stray matte
+    # disagrees (the segmenter takes the small neighbouring tree for the tree in one view), not the cameras
+    views = m["silhouette_iou_views"]
+    assert sorted(views) == sorted(json.loads((out / "cameras.json").read_text()))
+    low = [n for n, v in views.items() if v < 0.25]
+    assert len(low) <= 2 and np.median(list(views.values())) == pytest.approx(m["silhouette_iou_median"], abs=1e-3)
+    assert (m["consistency_warning"] is None) == (not low)
+    assert m["consistency_warning"] is None or "camera or their tree matte" in m["consistency_warning"]
     assert m["visible_nodes"] > 5 and res.skeleton.n_nodes > m["visible_nodes"]  # hidden branches grown
     # the tree stands on the ground at the origin (its root was 1.7 m up where the mattes lost the foot)
     assert res.skeleton.positions[0, 1] == 0.0 and res.skeleton.parent[0] == -1

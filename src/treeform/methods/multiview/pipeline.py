@@ -37,8 +37,8 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.methods.multiview.config import MultiviewConfig
 
-__all__ = ["MIN_GROUND_POINTS", "STAGES", "MultiviewResult", "reconstruct_multiview", "registration_warning",
-           "scale_warning"]
+__all__ = ["MIN_GROUND_POINTS", "MIN_VIEW_IOU", "STAGES", "MultiviewResult", "consistency_warning",
+           "reconstruct_multiview", "registration_warning", "scale_warning"]
 
 WOOD_VOTE = 0.25
 """A carved cell is branch when more than this share of the views that see it label it wood."""
@@ -107,6 +107,45 @@ def registration_warning(photos: int, unregistered) -> str | None:
     names = ", ".join(str(m) for m in miss[:3]) + (", ..." if len(miss) > 3 else "")
     return (f"{len(miss)} of {photos} photos did not register ({names}): the tree is seen from the other "
             f"{photos - len(miss)} alone; photos 15-20 degrees apart all around the tree register best")
+
+
+MIN_VIEW_IOU = 0.25
+"""A registered photo whose tree matte and the model seen from its camera overlap less than this
+(silhouette IoU) disagrees with the model. Measured on 480-px captures (BENCHMARKS.md, multi-view):
+the least of the 24 views of four right SfM models 0.55-0.66; wrong models (camera position errors
+of 12-26 % of the ring, or one camera 22 % off) have views at 0.0-0.09; so has a right model whose
+segmenter took a neighbouring tree for the tree in one photo (0.08)."""
+
+
+def consistency_warning(names, iou, tree_share) -> str | None:
+    """One line for the user when registered photos see the tree where the model is not, else None.
+
+    Either the photo's camera is wrong (the structure from motion placed it wrongly; where more
+    than a quarter of the photos disagree, the model itself is likely wrong) or its tree matte
+    is (the segmenter took another object for the tree); the model cannot tell which. Photos
+    whose matte holds no tree (``tree_share`` at most 0.2 % of the pixels) are not counted.
+
+    Examples
+    --------
+    >>> consistency_warning(["a.jpg", "b.jpg", "c.jpg"], [0.7, 0.65, 0.72], [0.2, 0.2, 0.2]) is None
+    True
+    >>> consistency_warning([f"{i}.jpg" for i in range(8)], [0.7] * 7 + [0.05], [0.2] * 8)[:61]
+    '1 of 8 registered photos disagree with the model (7.jpg: silh'
+    >>> consistency_warning(["a.jpg", "b.jpg", "c.jpg"], [0.7, 0.05, 0.0], [0.2, 0.2, 0.2])[-82:]
+    'the cameras of the whole model may be wrong; retake the photos 15-20 degrees apart'
+    >>> consistency_warning(["a.jpg", "b.jpg"], [0.7, 0.0], [0.2, 0.0]) is None
+    True
+    """
+    bad = [str(n) for n, v, t in zip(names, iou, tree_share) if t > 0.002 and v < MIN_VIEW_IOU]
+    if not bad:
+        return None
+    shown = ", ".join(bad[:3]) + (", ..." if len(bad) > 3 else "")
+    head = (f"{len(bad)} of {len(names)} registered photos disagree with the model ({shown}: silhouette IoU "
+            f"under {MIN_VIEW_IOU}): ")
+    if len(bad) > len(names) / 4:
+        return head + ("the structure from motion placed their cameras wrongly, or the mattes missed the tree; "
+                       "the cameras of the whole model may be wrong; retake the photos 15-20 degrees apart")
+    return head + "their camera or their tree matte is wrong (another object taken for the tree); check those photos"
 
 
 STAGES = ("photos", "sfm", "frame", "matting", "carve", "branches", "growth", "leaves", "mesh", "render", "export")
@@ -436,6 +475,8 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
         "scale_warning": scale_warning(sfm.meta.get("frame", {}), cfg.height is not None),
         "registration_warning": registration_warning(len(views), sfm.unregistered),
+        "consistency_warning": consistency_warning(sfm.names, iou, seen_tree) if len(iou) else None,
+        "silhouette_iou_views": {str(n): round(float(v), 4) for n, v in zip(sfm.names, iou)},
         "silhouette_iou_median": round(float(np.median(iou)), 4) if len(iou) else None,
         "silhouette_iou_min": round(float(np.min(iou)), 4) if len(iou) else None,
         "sfm": sfm.meta,
