@@ -199,3 +199,21 @@ def test_the_relaxed_model_is_kept_only_where_it_agrees_with_the_first():
     assert _second_opinion(None, _similar(ring, range(6)), 12)["kept"]
     assert not _second_opinion(None, _similar(ring, range(5)), 12)["kept"]
     assert not _second_opinion(None, None, 12)["kept"]
+
+
+def test_of_the_mapper_runs_the_most_photos_then_the_lowest_reprojection_error_wins():
+    from treeform.sfm.colmap import _better
+
+    rng = np.random.default_rng(0)
+    ring = _model([_look_at([4 * np.sin(a), 1.6, 4 * np.cos(a)], [0, 0.5, 0]) for a in np.linspace(0, 6, 12)],
+                  rng.normal(0, 0.5, (200, 3)) + [0, 0.5, 0])
+
+    def run(n, err):
+        m = _similar(ring, range(n))
+        m.errors = np.full(len(m.points), err)
+        return m
+
+    assert _better(run(12, 0.4), run(11, 0.2))  # more photos first
+    assert _better(run(12, 0.26), run(12, 0.42)) and not _better(run(12, 0.42), run(12, 0.26))
+    assert not _better(run(12, 0.3), run(12, 0.3))  # a tie keeps the earlier run (the seed's own)
+    assert _better(run(3, 0.5), None) and not _better(None, run(3, 0.5))

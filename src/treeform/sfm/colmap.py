@@ -15,9 +15,10 @@ seconds)``:
     tree closed) and the nearest photos by a bag of visual words built from the photos' own
     SIFT descriptors (:func:`retrieval_pairs`).
 ``sfm.map``
-    Incremental mapping; the largest model is kept. Where it leaves photos out, a second try
-    with looser thresholds (:data:`RELAXED_MAPPER`) replaces it if it registers more photos and
-    agrees with it on the photos both hold.
+    Incremental mapping; the largest model is kept. Where it leaves photos out, a run with looser
+    thresholds (:data:`RELAXED_MAPPER`) replaces it if it registers more photos and agrees with
+    it on the photos both hold; where it holds every photo, more runs (other seeds, the looser
+    thresholds) replace it if they hold every photo too and reproject better (:data:`MAPPER_RUNS`).
 ``sfm.convert``
     COLMAP's model -> :class:`SfmResult`, and the checks for a degenerate model.
 
@@ -81,16 +82,26 @@ RETRIEVAL_OVERLAP = 2
 RELAXED_MAPPER = {"abs_pose_min_num_inliers": 15, "abs_pose_min_inlier_ratio": 0.15, "init_min_num_inliers": 50}
 """The incremental mapper's thresholds for its second try (COLMAP's defaults: 30, 0.25 and 100).
 
-When the first model leaves photos out, the mapper runs again on the same matches with these
+Where the first model leaves photos out, the mapper runs again on the same matches with these
 looser thresholds, and that model is kept only where it registers more photos and puts the
 photos the first model holds where the first model does (:data:`AGREE_ROTATION_DEG`,
-:data:`AGREE_POSITION`). Looser thresholds alone register more photos of a leafy tree, where
+:data:`AGREE_POSITION`); where the first holds every photo, see :data:`MAPPER_RUNS`. Looser thresholds alone register more photos of a leafy tree, where
 few features match from one view to the next (24 views of a grown apple tree at 1024 px: 12 ->
 24 registered, median position error 0.32 -> 0.69 % of the scene; a willow at 480 px: 13 -> 24),
 but on sparse captures (16 views) they build wrong models (median rotation errors of 2.7-6.2
 degrees against 0.3-1.1 for the first model). On 14 synthetic captures the wrong models
 disagreed with the first on its own photos by 2.3-9.4 degrees (median rotation) and 2.2-20 %
 (farthest centre), the good ones by 0.2-1.2 degrees and 0.5-1.1 % (BENCHMARKS.md)."""
+
+MAPPER_RUNS = 3
+"""Where the mapper registers every photo, it runs again on the same matches with the seeds ``seed +
+1``, ..., ``seed + MAPPER_RUNS - 1`` and once with :data:`RELAXED_MAPPER`; of the runs that register
+every photo, the model with the lowest mean reprojection error is kept. One run can settle into a
+wrong model of every photo: on 38 synthetic captures, single runs 15-34 % of the ring off (rotations
+9-39 degrees) held every photo of four; the lowest reprojection error chose a right run (camera
+position error 0.2-1.1 %) on each of the four, and on two others a slightly worse one than the first
+run's (2.1 against 0.8 %, 3.9 against 3.1 %; BENCHMARKS.md, multi-view). Not where photos are left
+out: on a capture whose runs register 3-8 of 24 photos, one run took 9 minutes."""
 
 AGREE_ROTATION_DEG = 1.5
 """The second model agrees with the first when, after a similarity fit of the centres of the photos
@@ -517,9 +528,10 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
     -------
     SfmResult
         The largest model, in COLMAP's world (an arbitrary similarity; see
-        :mod:`treeform.sfm.align`); where it leaves photos out, the mapper's second try with
-        looser thresholds if that registers more and agrees (:data:`RELAXED_MAPPER`; ``meta["mapper"]``
-        says what it found and whether it was kept). ``meta`` holds ``n_views``, ``n_registered``,
+        :mod:`treeform.sfm.align`), of the mapper's run chosen as :data:`RELAXED_MAPPER` and
+        :data:`MAPPER_RUNS` say (``meta["mapper_runs"]``: each run's registered photos and mean
+        reprojection error; ``meta["mapper"]``: the looser run's agreement where photos were left
+        out). ``meta`` holds ``n_views``, ``n_registered``,
         ``n_models``, ``model_sizes``, ``n_points``, ``mean_reprojection_error``, ``seconds``
         per stage, ``focal_source`` per photo, ``matcher``, ``pairs``, ``verified_pairs``,
         ``radial_k1`` per photo (SIMPLE_RADIAL distortion, not in ``K``) and the geometry
@@ -579,7 +591,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
             with timer.stage("sfm.map"):
                 recs = _map(db_path, image_dir, work / "sparse", cseed) if verified else {}
                 sizes, result = _largest(recs, views, by_name)
-                second = {}
+                runs, second = [_run_note(result)], {}
                 if verified and (result is None or result.n_cameras < n):
                     # photos left out: the looser mapper, kept where it agrees (RELAXED_MAPPER)
                     pycolmap.set_random_seed(cseed)
@@ -588,6 +600,19 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                     second = _second_opinion(result, result2, n)
                     if second["kept"]:
                         recs, sizes, result = recs2, sizes2, result2
+                elif verified:
+                    # every photo registered, rightly or into a wrong model: more runs (other seeds, and
+                    # the looser mapper), and of those holding every photo the one that reprojects best
+                    # (MAPPER_RUNS)
+                    for j in range(1, MAPPER_RUNS + 1):
+                        relaxed = j == MAPPER_RUNS  # seeds seed + 1, seed + 2, then the looser mapper
+                        sj = cseed if relaxed else (cseed + j) % (2**31 - 1)
+                        pycolmap.set_random_seed(sj)
+                        recs_j = _map(db_path, image_dir, work / f"sparse{j}", sj, relaxed=relaxed)
+                        sizes_j, result_j = _largest(recs_j, views, by_name)
+                        runs.append(_run_note(result_j))
+                        if result_j is not None and result_j.n_cameras == n and _better(result_j, result):
+                            recs, sizes, result = recs_j, sizes_j, result_j
             with timer.stage("sfm.convert"):
                 if result is None:
                     raise SfmError(f"could not register the photos: no model could be built ({verified} of "
@@ -613,9 +638,28 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         "n_cameras_colmap": int(max(groups) + 1), "matcher": used, "pairs": match_info["pairs"],
         "verified_pairs": verified, "max_features": int(max_features), "first_octave": int(first_octave),
         "seed": int(seed), "colmap": f"pycolmap {pycolmap.__version__}", "mapper": second or {"kept": False},
+        "mapper_runs": runs,
         **notes,
     })
     return result
+
+
+def _run_note(result: SfmResult | None) -> list:
+    """``[registered photos, mean reprojection error]`` of one mapper run (for ``meta["mapper_runs"]``)."""
+    if result is None:
+        return [0, None]
+    return [result.n_cameras, round(float(result.errors.mean()), 4) if len(result.errors) else None]
+
+
+def _better(a: SfmResult | None, b: SfmResult | None) -> bool:
+    """Whether model ``a`` beats ``b``: more registered photos, then a lower mean reprojection error."""
+    if a is None:
+        return False
+    if b is None or a.n_cameras != b.n_cameras:
+        return b is None or a.n_cameras > b.n_cameras
+    ea = float(a.errors.mean()) if len(a.errors) else np.inf
+    eb = float(b.errors.mean()) if len(b.errors) else np.inf
+    return ea < eb
 
 
 def _largest(recs: dict, views, by_name: dict):
