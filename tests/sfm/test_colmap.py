@@ -19,6 +19,10 @@ def test_registers_every_view_accurately(sfm_result, capture):
     assert m["matcher"] == "exhaustive" and m["pairs"] == N_VIEWS * (N_VIEWS - 1) // 2
     assert set(m["focal_source"].values()) == {"exif_35mm"} and m["n_cameras_colmap"] == 1
     assert set(STAGES) <= set(m["seconds"]) and m["n_points"] == len(r.points) > 300
+    # every photo registered: the mapper ran again (MAPPER_RUNS) and kept the run that reprojects best
+    runs = m["mapper_runs"]
+    assert len(runs) == 4 and runs[m["mapper_run_kept"]][0] == N_VIEWS and m["mapper"] == {"kept": False}
+    assert runs[m["mapper_run_kept"]][1] == min(e for k, e in runs if k == N_VIEWS)
     err = pose_errors(r, truth_cameras_json(capture[1]))
     assert err["registration_rate"] == 1.0
     assert err["position_median_rel"] < 0.005 and err["position_max_rel"] < 0.02

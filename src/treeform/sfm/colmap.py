@@ -530,7 +530,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         The largest model, in COLMAP's world (an arbitrary similarity; see
         :mod:`treeform.sfm.align`), of the mapper's run chosen as :data:`RELAXED_MAPPER` and
         :data:`MAPPER_RUNS` say (``meta["mapper_runs"]``: each run's registered photos and mean
-        reprojection error; ``meta["mapper"]``: the looser run's agreement where photos were left
+        reprojection error, ``meta["mapper_run_kept"]`` the index of the one kept; ``meta["mapper"]``: the looser run's agreement where photos were left
         out). ``meta`` holds ``n_views``, ``n_registered``,
         ``n_models``, ``model_sizes``, ``n_points``, ``mean_reprojection_error``, ``seconds``
         per stage, ``focal_source`` per photo, ``matcher``, ``pairs``, ``verified_pairs``,
@@ -591,7 +591,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
             with timer.stage("sfm.map"):
                 recs = _map(db_path, image_dir, work / "sparse", cseed) if verified else {}
                 sizes, result = _largest(recs, views, by_name)
-                runs, second = [_run_note(result)], {}
+                runs, second, chosen = [_run_note(result)], {}, 0
                 if verified and (result is None or result.n_cameras < n):
                     # photos left out: the looser mapper, kept where it agrees (RELAXED_MAPPER)
                     pycolmap.set_random_seed(cseed)
@@ -612,7 +612,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                         sizes_j, result_j = _largest(recs_j, views, by_name)
                         runs.append(_run_note(result_j))
                         if result_j is not None and result_j.n_cameras == n and _better(result_j, result):
-                            recs, sizes, result = recs_j, sizes_j, result_j
+                            recs, sizes, result, chosen = recs_j, sizes_j, result_j, j
             with timer.stage("sfm.convert"):
                 if result is None:
                     raise SfmError(f"could not register the photos: no model could be built ({verified} of "
@@ -638,7 +638,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
         "n_cameras_colmap": int(max(groups) + 1), "matcher": used, "pairs": match_info["pairs"],
         "verified_pairs": verified, "max_features": int(max_features), "first_octave": int(first_octave),
         "seed": int(seed), "colmap": f"pycolmap {pycolmap.__version__}", "mapper": second or {"kept": False},
-        "mapper_runs": runs,
+        "mapper_runs": runs, "mapper_run_kept": chosen,
         **notes,
     })
     return result
