@@ -49,6 +49,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError, SfmError, TreeformError
 from treeform._shared.timing import ProgressCallback, StageTimer
+from treeform.sfm.evaluate import pose_errors
 from treeform.sfm.photos import MIN_PHOTOS, PhotoView
 from treeform.sfm.result import SfmResult
 
@@ -630,7 +631,7 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
     result.meta.update({
         "n_views": n, "n_registered": result.n_cameras, "n_unregistered": len(result.unregistered),
         "n_models": len(recs), "model_sizes": [s[0] for s in sizes], "n_points": int(len(result.points)),
-        "mean_reprojection_error": round(float(result.errors.mean()), 4) if len(result.errors) else None,
+        "mean_reprojection_error": round(_mean_error(result), 4) if len(result.errors) else None,
         "mean_track_length": round(float(np.mean([len(t) for t in result.tracks])), 3) if result.tracks else 0.0,
         "seconds": {**{k: round(v, 3) for k, v in timer.timings.items()},
                     "total": round(sum(timer.timings.values()), 3)},
@@ -644,22 +645,27 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
     return result
 
 
+def _mean_error(result: SfmResult) -> float:
+    """Mean reprojection error of a model's points (inf without points)."""
+    return float(result.errors.mean()) if len(result.errors) else np.inf
+
+
 def _run_note(result: SfmResult | None) -> list:
     """``[registered photos, mean reprojection error]`` of one mapper run (for ``meta["mapper_runs"]``)."""
     if result is None:
         return [0, None]
-    return [result.n_cameras, round(float(result.errors.mean()), 4) if len(result.errors) else None]
+    return [result.n_cameras, round(_mean_error(result), 4) if len(result.errors) else None]
 
 
 def _better(a: SfmResult | None, b: SfmResult | None) -> bool:
     """Whether model ``a`` beats ``b``: more registered photos, then a lower mean reprojection error."""
     if a is None:
         return False
-    if b is None or a.n_cameras != b.n_cameras:
-        return b is None or a.n_cameras > b.n_cameras
-    ea = float(a.errors.mean()) if len(a.errors) else np.inf
-    eb = float(b.errors.mean()) if len(b.errors) else np.inf
-    return ea < eb
+    if b is None:
+        return True
+    if a.n_cameras != b.n_cameras:
+        return a.n_cameras > b.n_cameras
+    return _mean_error(a) < _mean_error(b)
 
 
 def _largest(recs: dict, views, by_name: dict):
@@ -677,8 +683,6 @@ def _second_opinion(first: SfmResult | None, second: SfmResult | None, n: int) -
     hold (:data:`AGREE_ROTATION_DEG`, :data:`AGREE_POSITION`); without a first model, when it
     registers at least half of the ``n`` photos and passes :func:`check_geometry`.
     """
-    from treeform.sfm.evaluate import pose_errors
-
     out = {"kept": False, "registered": 0 if second is None else second.n_cameras}
     if second is None or second.n_cameras <= (0 if first is None else first.n_cameras):
         return out
