@@ -36,7 +36,7 @@ from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.segment.learned_feet import snap_feet, union_feet
 
 __all__ = ["TreeInstance", "find_tree_instances", "all_trees_probability", "split_at_trunks", "trunk_feet",
-           "merge_joined_feet", "snap_feet", "FEET_METHODS", "DEFAULT_FEET", "FEET_THRESHOLD"]
+           "merge_joined_feet", "snap_feet", "run_at", "FEET_METHODS", "DEFAULT_FEET", "FEET_THRESHOLD"]
 
 FEET_METHODS = ("rules", "learned", "both")
 """Where ``find_tree_instances`` takes the trunks' feet from: the mask's rules (:func:`trunk_feet`), the
@@ -96,8 +96,16 @@ def _runs(mask: np.ndarray) -> np.ndarray:
     return width[lab]
 
 
-def _run_at(row: np.ndarray, lo: int, hi: int):
-    """The run of True in ``row`` overlapping [lo, hi] most, as (lo, hi) inclusive, or None."""
+def run_at(row: np.ndarray, lo: int, hi: int):
+    """The run of True in ``row`` overlapping [lo, hi] most, as (lo, hi) inclusive, or None.
+
+    The run holds the covered pixel of [lo - 1, hi + 1] nearest the middle of [lo, hi].
+
+    >>> [int(x) for x in run_at(np.array([0, 1, 1, 0, 0, 1, 1, 1, 0], bool), 4, 4)]
+    [5, 7]
+    >>> run_at(np.array([0, 1, 1, 0, 0, 0, 0, 1, 0], bool), 4, 4) is None
+    True
+    """
     seg = row[max(0, lo - 1):hi + 2]
     if not seg.any():
         return None
@@ -177,13 +185,13 @@ def trunk_feet(mask: np.ndarray, wood: np.ndarray | None = None, *, ground: np.n
         v = int(bottom[seg].max())
         seg = seg[bottom[seg] == v]
         u = int(seg[len(seg) // 2])
-        run = _run_at(mask[v], u, u)
+        run = run_at(mask[v], u, u)
         stem = []
         r = v
         while run is not None and run[1] - run[0] + 1 <= narrow_px and r >= rows[0]:
             stem.append((r, run[0], run[1]))
             r -= 1
-            run = _run_at(mask[r], *run) if r >= 0 else None
+            run = run_at(mask[r], *run) if r >= 0 else None
         marker = np.zeros_like(mask)
         for rr, lo, hi in stem:
             marker[rr, lo:hi + 1] = True

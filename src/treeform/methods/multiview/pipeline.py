@@ -16,7 +16,8 @@ Stages, each one call into a domain folder or a sibling module:
 5. **visible branch graph** (§4.3): :func:`branch_graph.branch_skeleton`.
 6. **hidden branches** (§5): constrained growth — the project's space colonization from
    the visible skeleton toward the leaf points (seed 002 grows its replication blocks
-   "constrained by the leaf points"); radii by the pipe model, the trunk at its measured width.
+   "constrained by the leaf points"); radii by the pipe model, the trunk at the width the photos
+   show at their own resolution (:func:`trunk.trunk_diameter`; the mattes' width where they do not).
 7. **leaves** (§6): most leaf clusters on the crown's surface as the views' silhouettes carve
    it, the rest on the grown twigs; each card wears the photo that sees it best, carved texel
    by texel against every view's matte (``leaf_texture='photo'``, the default), or is a drawn
@@ -306,6 +307,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     from treeform.io.outputs import check_out_dir
     from treeform.methods.multiview.branch_graph import branch_skeleton
     from treeform.methods.multiview.carve import carve_tree, main_component
+    from treeform.methods.multiview.trunk import trunk_axis, trunk_diameter
     from treeform.sfm import load_photos, run_sfm, to_tree_frame
     from treeform.structures import TreeSkeleton
 
@@ -404,10 +406,17 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
             visible = TreeSkeleton(np.column_stack([np.zeros(6), ys, np.zeros(6)]), np.arange(-1, 5),
                                    np.full(6, 0.02 * height))
         visible = _down_to_ground(visible)
-        # the mattes' blur widens thin wood (and a segmenter may take the trunk's shadow or a bush
-        # behind it into the trunk): a trunk radius no more than 1 % of the height (open-grown
+        # the mattes' blur widens thin wood 2.5-3x (and a segmenter may take the trunk's shadow or a
+        # bush behind it into the trunk): the trunk is measured in the photos at their own resolution
+        # where they show it, else in the hull; a radius no more than 1 % of the height (open-grown
         # trees measure 0.4-1 %; the 24-view oak capture 0.6 %)
-        trunk_r = min(float(np.median(visible.radius[: max(3, visible.n_nodes // 20)])), 0.01 * height)
+        diameter = None
+        if masks is None and cfg.segmenter == "learned":
+            diameter = trunk_diameter(sfm, [by_name[n] for n in sfm.names], trunk_axis(visible), height)
+        trunk_from = "photos" if diameter is not None else "hull"
+        trunk_r = 0.5 * diameter if diameter is not None else \
+            float(np.median(visible.radius[: max(3, visible.n_nodes // 20)]))
+        trunk_r = min(trunk_r, 0.01 * height)
     with timer.stage("growth"):
         att = _crown_attractors(carved, branch, 4000, rng)
         start_pos, start_par = visible.positions, visible.parent
@@ -472,7 +481,8 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         # the model's own top above the ground (y = 0): the carved hull's (hull_height_m) stands higher,
         # a tent over the crown that eye-level views cannot carve away
         "tree_height_m": round(float(mesh.bounds()[1][1]), 4), "hull_height_m": round(float(height), 4),
-        "trunk_radius_m": round(trunk_r, 4), "scale_from": "height" if cfg.height is not None else "eye_height",
+        "trunk_radius_m": round(trunk_r, 4), "trunk_radius_from": trunk_from,
+        "scale_from": "height" if cfg.height is not None else "eye_height",
         "scale_warning": scale_warning(sfm.meta.get("frame", {}), cfg.height is not None),
         "registration_warning": registration_warning(len(views), sfm.unregistered),
         "consistency_warning": consistency_warning(sfm.names, iou, seen_tree) if len(iou) else None,
