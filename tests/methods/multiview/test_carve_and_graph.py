@@ -127,6 +127,21 @@ def test_branch_skeleton_of_a_fork(gap):
     assert np.median(on_axis) < 0.05
 
 
+def test_a_stray_speck_nearest_the_foot_does_not_root_the_skeleton():
+    """Mattes that lost the lower trunk: the branch point nearest the foot is a speck (a hedge's wood)
+    that no gap joins to the tree; the tree's network (the largest piece) roots the skeleton at its
+    point nearest the foot."""
+    rng = np.random.default_rng(2)
+    pts, th = _y_points(rng)
+    keep = pts[:, 1] > 1.2  # the trunk's lowest 1.2 m unseen
+    speck = np.array([0.9, 0.4, 0.2]) + rng.normal(0, 0.02, (12, 3))
+    pts, th = np.concatenate([speck, pts[keep]]), np.concatenate([np.full(12, 0.3), th[keep]])
+    sk = branch_skeleton(pts, th, link=0.06, gap=0.3, bin_width=0.15, root=np.zeros(3))
+    assert sk.positions[0, 1] == pytest.approx(1.2, abs=0.05) and abs(sk.positions[0, 0]) < 0.05
+    tips = np.flatnonzero(np.bincount(sk.parent[1:], minlength=sk.n_nodes) == 0)
+    assert len(tips) == 2 and np.all(sk.positions[tips, 1] > 3.2)
+
+
 def test_branch_skeleton_needs_points():
     with pytest.raises(NoTreeFoundError):
         branch_skeleton(np.zeros((1, 3)), np.ones(1), link=0.1, gap=0.2, bin_width=0.1)

@@ -44,7 +44,9 @@ def branch_skeleton(points: np.ndarray, thickness: np.ndarray, *, link: float, g
         Path length per skeleton node.
     root : ndarray, shape (3,), optional
         Where the trunk stands; default the lowest point. The graph's root is the branch
-        point nearest to it.
+        point nearest to it in the largest piece the gaps join (where the mattes lost the
+        lower trunk, the point nearest the foot can be a stray speck or a hedge's wood that
+        nothing joins: the tree's branches are the largest network).
     min_branch_nodes : int
         Side branches (tip chains) with fewer nodes are pruned (binning noise).
 
@@ -70,12 +72,17 @@ def branch_skeleton(points: np.ndarray, thickness: np.ndarray, *, link: float, g
     tree = cKDTree(pts)
     pairs = tree.query_pairs(link, output_type="ndarray")
     i, j = (pairs[:, 0], pairs[:, 1]) if len(pairs) else (np.zeros(0, int), np.zeros(0, int))
-    r0 = int(np.argmin(pts[:, 1])) if root is None else int(tree.query(np.asarray(root, float))[1])
     # join the pieces across gaps of at most `gap`: a minimum spanning tree over the pieces, its
     # edges between representative points (one per piece and half-gap grid cell)
     comp = _components(len(pts), i, j)
     bi, bj = _bridges(pts, comp, gap)
     i, j = np.concatenate([i, bi]), np.concatenate([j, bj])
+    joined = _components(len(pts), i, j)
+    main = np.flatnonzero(joined == np.argmax(np.bincount(joined)))
+    if root is None:
+        r0 = int(main[np.argmin(pts[main, 1])])
+    else:
+        r0 = int(main[np.argmin(np.linalg.norm(pts[main] - np.asarray(root, float), axis=1))])
     w = np.linalg.norm(pts[i] - pts[j], axis=1) + 1e-9
     g = coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))),
                    shape=(len(pts), len(pts))).tocsr()
