@@ -13,7 +13,7 @@ import numpy as np
 from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["segment_tree_learned", "tree_probability", "guided_filter", "stand_on_ground"]
+__all__ = ["segment_tree_learned", "tree_probability", "guided_filter", "stand_on_ground", "wood_at_full_size"]
 
 MIN_TREE_FRACTION = 0.01
 """A main tree smaller than this share of the photo counts as no tree."""
@@ -204,6 +204,33 @@ def tree_probability(img: np.ndarray, seg_net, *, guided: bool = True) -> tuple[
     if guided:
         p_tree = snap_to_edges(img, p_tree, seg_net.side)
     return p, p_tree
+
+
+def wood_at_full_size(img: np.ndarray, seg_net, *, overlap: float = 0.25) -> np.ndarray:
+    """(H, W) probability that a pixel is wood, the network run on tiles of the photo at its own size.
+
+    The network sees a whole photo at ``seg_net.side`` pixels (320): a branch 3 px wide in a
+    1024-px photo is under a pixel there, and its wood is lost. Squares of ``side`` pixels cut
+    from the photo at full size (``overlap`` of their side shared with the next one) let it see
+    every branch at the photo's own resolution; each pixel keeps its highest wood probability
+    over the squares that hold it (a pixel the tile calls background counts 0). Nothing here
+    says which tree the wood belongs to: the caller decides (the multi-view route's carving
+    keeps the wood the views agree on in 3D). ``seg_net`` is a
+    :class:`~treeform.learn.infer.Segmenter`.
+    """
+    from treeform.segment.instances import _windows
+
+    img = np.asarray(img)
+    H, W = img.shape[:2]
+    side = int(seg_net.side)
+    stride = max(1.0, (1.0 - float(overlap)) * side)
+    wood = np.zeros((H, W), np.float32)
+    for y in _windows(H, side, stride):
+        for x in _windows(W, side, stride):
+            p = seg_net.probabilities(img[y:y + side, x:x + side])
+            w = np.where(p[..., 0] < 0.5, p[..., 2], 0.0)
+            np.maximum(wood[y:y + side, x:x + side], w, out=wood[y:y + side, x:x + side])
+    return wood
 
 
 def snap_to_edges(img: np.ndarray, p_tree: np.ndarray, side: int) -> np.ndarray:

@@ -32,6 +32,11 @@ class MultiviewConfig:
     thin_wood: bool = True
     """Add thin dark ridges against the sky near the tree to the segmenter's mattes as wood (the twigs
     its stride loses; the carving keeps those the views agree on). Not applied to ``--masks``."""
+    tile_wood: bool = True
+    """Add the wood the learned segmenter sees on tiles of each photo at its own resolution (inside and
+    outside the matte; the carving keeps what the views agree on in 3D), for photos at least twice the
+    network's view (``pipeline.TILE_WOOD_FROM``). Only with ``segmenter`` 'learned', not applied to
+    ``--masks``."""
     cells: int = 400
     """Finest carving cell (thin branches) = tree height / cells."""
     surface_cells: int = 200
@@ -61,8 +66,9 @@ class MultiviewConfig:
         check_int(self.max_size, "max_size", 128, 8192)
         check_int(self.mask_size, "mask_size", 64, 4096)
         check_choice(self.segmenter, "segmenter", SEGMENTERS)
-        if not isinstance(self.thin_wood, bool):
-            raise InputError(f"thin_wood: expected True or False, got {self.thin_wood!r}")
+        for name in ("thin_wood", "tile_wood"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"{name}: expected True or False, got {getattr(self, name)!r}")
         check_int(self.cells, "cells", 50, 2000)
         check_int(self.surface_cells, "surface_cells", 10, 2000)
         if not 0.0 <= float(self.tolerance) < 0.5:

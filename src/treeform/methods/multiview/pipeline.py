@@ -6,9 +6,10 @@ Stages, each one call into a domain folder or a sibling module:
    pycolmap on the CPU with the EXIF focal prior; the largest model.
 2. **frame** (§3): up = the cameras' mean up, the ground plane from the lowest points,
    metres from ``height`` or from the cameras' eye height, origin at the trunk's foot.
-3. **matting** (§4.1): the project's segmenter on every registered view, plus thin dark
-   ridges against the sky near the tree as wood (:func:`treeform.segment.thin.thin_dark_lines`:
-   the twigs a segmenter's stride loses).
+3. **matting** (§4.1): the project's segmenter on every registered view, plus the wood the
+   network sees on full-size tiles of the photo (:func:`_tile_wood`: the limbs it loses when it
+   sees the photo whole at 320 px) and thin dark ridges against the sky near the tree as wood
+   (:func:`treeform.segment.thin.thin_dark_lines`: the twigs a segmenter's stride loses).
 4. **points and partition** (§4.1–4.2): :func:`carve.carve_tree` — the tree's points as
    the visual hull of the mattes (the piece the cameras look at, :func:`carve.main_component`),
    each with the silhouette half-width seen from the views and wood votes; thin or wood-voted
@@ -61,6 +62,11 @@ TEXEL_DILATE = 1
 """Pixels by which the views' tree masks grow before the texels are carved against them (the
 cameras' registration is good to about a pixel at the mattes' size)."""
 
+TILE_WOOD_FROM = 2.0
+"""The network's wood on full-size tiles (``tile_wood``) joins a photo's matte when the photo is at
+least this many times the network's view (320 px): from a 1024-px photo the tiles see the limbs 3.2x
+larger (the 1024-px oak capture's skeleton 5.36 -> 3.06 % of the height), from a 480-px one 1.5x,
+which added as much false wood as true (six 480-px captures: 5.16 -> 5.35 %)."""
 MIN_GROUND_POINTS = 20
 """SfM ground inliers under which the eye-height scale is called unreliable. Measured (BENCHMARKS.md,
 multi-view): 4-13 inliers on captures whose height came out 0.23-2.4x the truth, 22 on one within 15 %."""
@@ -204,6 +210,11 @@ def _segment_views(views, sfm, cfg, masks=None):
 
     by_name = {v.name: v for v in views}
     labels, images, scales = [], [], []
+    seg_net = None
+    if masks is None and cfg.tile_wood and cfg.segmenter == "learned":
+        from treeform.learn.infer import Segmenter
+
+        seg_net = Segmenter()
     for k, name in enumerate(sfm.names):
         img = by_name[name].image
         s = min(1.0, cfg.mask_size / max(img.shape[:2]))
@@ -213,6 +224,8 @@ def _segment_views(views, sfm, cfg, masks=None):
             labels.append(_user_labels(masks, name, (small.shape[1], small.shape[0])))
         else:
             lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
+            if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
+                lab[_tile_wood(img, lab.shape, seg_net)] = 2
             if cfg.thin_wood:
                 # the segmenter's stride loses the twigs against the sky: dark ridges against the
                 # sky near the tree become wood; the carving keeps only those the views agree on
@@ -222,6 +235,29 @@ def _segment_views(views, sfm, cfg, masks=None):
         images.append(small)
         scales.append(small.shape[1] / sfm.sizes[k, 0])
     return labels, images, np.asarray(scales)
+
+
+def _tile_wood(img: np.ndarray, shape: tuple, seg_net) -> np.ndarray:
+    """Where the network, run on tiles of the full-size photo, sees wood: a (h, w) = ``shape`` mask.
+
+    The matte comes from the photo seen whole at the network's 320 px, where the limbs under a
+    crown are a pixel or less wide and their wood is lost (wood recall 13-29 % on the 24-view
+    oak capture); on tiles at the photo's own size the network sees them
+    (:func:`~treeform.segment.learned.wood_at_full_size`). Each matte pixel takes the most wood of
+    the full-size pixels it covers, so a branch a pixel wide at full size stays a pixel wide.
+    """
+    import cv2
+    import scipy.ndimage as ndi
+
+    from treeform.segment.learned import wood_at_full_size
+
+    wood = wood_at_full_size(img, seg_net)
+    f = int(np.ceil(img.shape[1] / shape[1]))
+    if f > 1:  # each pixel the most of the f x f block from it on, the block a nearest resize samples
+        wood = ndi.maximum_filter(wood, size=f, origin=-(f // 2))
+    if wood.shape != tuple(shape):
+        wood = cv2.resize(wood, (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST)
+    return wood > 0.5
 
 
 def _hull_box(sfm, axis, ring) -> tuple[np.ndarray, np.ndarray]:
