@@ -28,7 +28,7 @@ from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.structures.rbv import RadialBoundingVolume
-from treeform.structures.skeleton import TreeSkeleton
+from treeform.structures.skeleton import TreeSkeleton, subtree_sizes
 
 
 @dataclass
@@ -142,10 +142,7 @@ def _preorder(parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         tin[v] = len(order)
         order.append(v)
         stack.extend(reversed(children[v]))
-    size = np.ones(n, np.int64)
-    for i in range(n - 1, 0, -1):
-        size[parent[i]] += size[i]
-    return tin, size
+    return tin, subtree_sizes(parent)
 
 
 def half_centroid(rbv: RadialBoundingVolume, layer: int, side: int) -> np.ndarray:

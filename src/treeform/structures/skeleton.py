@@ -15,6 +15,19 @@ SKELETON_FORMAT = "treeform.skeleton"
 SKELETON_VERSION = 1
 
 
+def subtree_sizes(parent) -> np.ndarray:
+    """(N,) number of nodes in each node's subtree, itself included, of a parent array (children after parents).
+
+    >>> subtree_sizes(np.array([-1, 0, 1, 1, 0])).tolist()
+    [5, 3, 1, 1, 1]
+    """
+    parent = np.asarray(parent, np.int64)
+    size = np.ones(len(parent), np.int64)
+    for i in range(len(parent) - 1, 0, -1):
+        size[parent[i]] += size[i]
+    return size
+
+
 @dataclass
 class TreeSkeleton:
     """A tree as nodes with a parent index each.
@@ -82,6 +95,10 @@ class TreeSkeleton:
     def child_counts(self) -> np.ndarray:
         """(N,) number of children of each node."""
         return np.bincount(self.parent[1:], minlength=self.n_nodes)
+
+    def subtree_sizes(self) -> np.ndarray:
+        """(N,) number of nodes in each node's subtree, itself included (:func:`subtree_sizes`)."""
+        return subtree_sizes(self.parent)
 
     def tips(self) -> np.ndarray:
         """Indices of the terminal nodes (no children)."""

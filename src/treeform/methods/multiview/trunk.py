@@ -37,12 +37,9 @@ def trunk_chain(skeleton) -> np.ndarray:
     [0, 1, 3, 4]
     """
     parent = np.asarray(skeleton.parent, np.int64)
-    n = len(parent)
-    size = np.ones(n, np.int64)
-    for i in range(n - 1, 0, -1):  # children have larger indices
-        size[parent[i]] += size[i]
+    size = skeleton.subtree_sizes()
     children: dict = {}
-    for i in range(1, n):
+    for i in range(1, len(parent)):
         children.setdefault(int(parent[i]), []).append(i)
     chain = [0]
     while chain[-1] in children:
