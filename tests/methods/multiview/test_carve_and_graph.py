@@ -188,3 +188,40 @@ def test_surface_voxel_refines_the_crown_surface(scene):
     assert np.median(fine.edge[centre]) > 1.2
     with pytest.raises(InputError, match="surface_voxel"):
         carve_tree(K, c2w, labels, box=box, voxel=0.05, surface_voxel=0.01)
+
+
+def test_wood_votes_go_to_the_limbs_not_along_their_rays():
+    """30 limbs seen through a crown from 24 views: the rays through their wood pixels cross the
+    crown at every depth, and with raw votes hundreds of cells far from any limb are called wood
+    by a quarter of the views; explained votes keep the trunk and every limb and drop most of those."""
+    from scipy.ndimage import grey_dilation
+    from scipy.spatial import cKDTree
+
+    from treeform.methods.multiview.carve import explain_wood
+
+    rng = np.random.default_rng(0)
+    K, c2w, size = _ring_cameras(n=24)
+    trunk, crown = _tree_points(rng)
+    d = rng.normal(size=(30, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:, 1] = np.abs(d[:, 1])
+    ends = np.array([0, 4.5, 0]) + 1.7 * d
+    limbs = np.concatenate([np.array([0, 3.0, 0]) + rng.uniform(0, 1, (2000, 1)) * (e - [0, 3.0, 0]) for e in ends])
+    # the limbs drawn over the crown (seen through its gaps), a pixel wider (a segmenter's blur)
+    labels = [np.where(grey_dilation((lab == 2).astype(np.uint8), size=(3, 3)) > 0, 2, lab) * (lab > 0)
+              for lab in _masks(K, c2w, size, np.concatenate([trunk, limbs]), crown)]
+    box = ([-4, -0.2, -4], [4, 8, 4])
+    ct = carve_tree(K, c2w, labels, box=box, voxel=0.05, tolerance=0.1)
+    votes = explain_wood(ct.points, ct.wood, K, c2w, labels, size=ct.size)
+    assert np.array_equal(votes, explain_wood(ct.points, ct.wood, K, c2w, labels, size=ct.size))
+    far = cKDTree(np.concatenate([trunk, limbs])).query(ct.points)[0] > 0.3
+    on_trunk = cKDTree(trunk).query(ct.points)[0] < 0.08
+    on_limb = (cKDTree(limbs).query(ct.points)[0] < 0.08) & ~on_trunk
+    assert on_limb.sum() >= 10 and on_trunk.sum() > 100
+    ghosts_raw, ghosts = int((ct.wood[far] > 0.25).sum()), int((votes[far] > 0.25).sum())
+    assert ghosts_raw > 300 and ghosts < 0.6 * ghosts_raw
+    assert (votes[on_limb] > 0.25).all() and np.median(votes[on_trunk]) > 0.5
+    # no cell gains a vote
+    assert np.all(votes <= ct.wood + 1e-12)
+    with pytest.raises(InputError, match="tolerance"):
+        explain_wood(ct.points, ct.wood, K, c2w, labels, tolerance=1.5)

@@ -15,7 +15,9 @@ the sky carve into thin tubes and the crown into its volume. Each surviving cell
 - an **edge** distance: the smallest, over the views, distance from the cell's projection
   to its silhouette's edge, in metres at the cell's depth (about 0 on the hull's surface:
   where leaves are seen; large deep inside the crown);
-- **votes**: the share of views whose label at the cell's projection is wood;
+- **votes**: the share of views whose label at the cell's projection is wood (raw: a view's wood
+  pixel counts for every cell on its ray; :func:`explain_wood` gives it to the cells that explain
+  it best, since a limb seen by a view is wood at one depth, not along the whole ray);
 - a **colour**: the median image colour over the views that label it tree.
 
 The point partition (branch / leaf) of §4.2 combines both: thin or wood-voted cells are
@@ -30,7 +32,11 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 
-__all__ = ["CarvedTree", "carve_tree", "main_component"]
+__all__ = ["CarvedTree", "carve_tree", "explain_wood", "main_component"]
+
+WOOD_EXPLAIN = 0.2
+"""A view's wood pixel votes for the cells on its ray whose raw vote is within this share of the
+ray's best (:func:`explain_wood`)."""
 
 
 @dataclass
@@ -46,7 +52,8 @@ class CarvedTree:
     thickness : ndarray, shape (P,)
         Half-width of the hull through the cell (metres; see the module notes).
     wood : ndarray, shape (P,)
-        Share of the seeing views that label the cell's projection wood.
+        Share of the seeing views that label the cell's projection wood (raw votes; see
+        :func:`explain_wood`).
     seen : ndarray, shape (P,), int
         Number of views whose frame holds the cell.
     colors : ndarray, shape (P, 3), uint8
@@ -272,6 +279,109 @@ def _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, image
     edge[~np.isfinite(edge)] = 0.0
     return CarvedTree(points, size, thick, wood / np.maximum(seen, 1), seen, colors, edge,
                       hit / np.maximum(seen, 1))
+
+
+def explain_wood(points, votes, K, cam_to_world, labels, *, size=None, tolerance: float = WOOD_EXPLAIN) -> np.ndarray:
+    """Wood votes with each view's wood pixels given to the cells on their rays that explain them best.
+
+    A cell's raw vote (the share of the views whose label at its projection is wood) counts a
+    view's wood pixel for every cell its ray crosses: inside a crown, where the limbs seen
+    through its gaps cross the views' rays at every depth, the cells around a limb collect
+    votes from the views whose rays pass a limb in front of or behind them, and the branch
+    points become a tangle filling the crown (measured on the 24-view oak capture: 79,000 of
+    its 902,000 cells above a vote of 0.25, a visible skeleton of 4,655 nodes against the
+    true tree's 2,311). A limb seen by a view is wood at one depth: here each view's wood pixel
+    votes only for the cells projecting to it that belong to the best explanation on its ray —
+    the cell with the highest raw vote (the limb, which the other views agree on), the cells
+    within the wood's own depth of it (a trunk's half-width seen in the view: a solid trunk is
+    many cells deep) and those whose raw vote is within ``tolerance`` of the best — and the
+    votes are counted again (explaining away along the ray, as visibility reasoning in space
+    carving does). Where the wood seen in the views is sparse (a dense crown showing its trunk
+    only), the cells on a wood pixel's ray are few and the limb's own cells keep their votes.
+
+    Parameters
+    ----------
+    points : ndarray, shape (P, 3)
+        Cell centres (world).
+    votes : ndarray, shape (P,)
+        Raw votes: share of the views that see a cell whose label at its projection is wood.
+    K : ndarray, shape (C, 3, 3)
+        Intrinsics in pixels of ``labels``.
+    cam_to_world : ndarray, shape (C, 4, 4)
+        OpenCV camera axes.
+    labels : list of C ndarrays, shape (H_i, W_i)
+        0 background, 1 foliage, 2 wood.
+    size : ndarray, shape (P,), optional
+        Cell edges (default 0): a cell within half its edge and half the best's of the wood's
+        depth counts as the same wood.
+    tolerance : float
+        Share below the ray's best raw vote a cell may fall and still take the pixel's vote.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        Share of the views that see a cell whose wood pixel it explains.
+
+    Examples
+    --------
+    Two views at right angles, each a wood pixel at the middle: the limb at the crossing of
+    their rays keeps both votes; the cells further along either ray, which one view alone
+    calls wood, lose theirs.
+
+    >>> K = np.array([[[10.0, 0, 2], [0, 10, 2], [0, 0, 1]]] * 2)
+    >>> front = np.eye(4); front[2, 3] = -10.0                     # at z = -10, looking along +z
+    >>> side = np.array([[0.0, 0, -1, 10], [0, 1, 0, 0], [1, 0, 0, 0], [0, 0, 0, 1]])  # at x = 10, along -x
+    >>> lab = np.zeros((5, 5), np.uint8); lab[2, 2] = 2
+    >>> pts = np.array([[0.0, 0, 0], [0, 0, 3], [3, 0, 0]])          # the limb, behind it, beside it
+    >>> raw = np.array([1.0, 0.5, 0.5])
+    >>> explain_wood(pts, raw, K, np.stack([front, side]), [lab, lab]).tolist()
+    [1.0, 0.0, 0.0]
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    raw = np.asarray(votes, np.float64).reshape(-1)
+    c2w = np.asarray(cam_to_world, np.float64).reshape(-1, 4, 4)
+    K = np.asarray(K, np.float64).reshape(-1, 3, 3)
+    if len(raw) != len(pts):
+        raise InputError(f"explain_wood: {len(pts)} points, {len(raw)} votes")
+    if len(K) != len(c2w) or len(labels) != len(K):
+        raise InputError(f"explain_wood: {len(K)} intrinsics, {len(c2w)} poses, {len(labels)} label images")
+    if not 0.0 <= tolerance <= 1.0:
+        raise InputError(f"tolerance: expected a share in [0, 1], got {tolerance!r}")
+    half = np.zeros(len(pts)) if size is None else 0.5 * np.broadcast_to(np.asarray(size, np.float64), raw.shape)
+    from scipy.ndimage import distance_transform_edt, maximum_filter
+
+    out = np.zeros(len(pts))
+    voted = np.flatnonzero(raw > 0)  # only a cell some view calls wood can explain a wood pixel
+    pts, raw, half = pts[voted], raw[voted], half[voted]
+    explained = np.zeros(len(pts))
+    seen = np.zeros(len(pts))
+    w2c = np.linalg.inv(c2w)
+    focal = 0.5 * (K[:, 0, 0] + K[:, 1, 1])
+    for i in range(len(K)):
+        lab = np.asarray(labels[i])
+        h, w = lab.shape
+        uv, z = _project(pts, w2c[i], K[i])
+        ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        seen += ok
+        col = np.clip(np.nan_to_num(uv[:, 0]).astype(np.int64), 0, w - 1)
+        row = np.clip(np.nan_to_num(uv[:, 1]).astype(np.int64), 0, h - 1)
+        pix = row * w + col
+        wood = np.flatnonzero(ok & (lab[row, col] == 2))
+        if not len(wood):
+            continue
+        # the wood's half-width in pixels near each of its pixels (a pixel at a trunk's edge sees a
+        # shorter chord, but the cells there are as near the best as the chord is long)
+        half_px = maximum_filter(distance_transform_edt(lab == 2), size=5)
+        # the best cell on each wood pixel's ray: the last of its pixel's group sorted by raw vote
+        order = wood[np.lexsort((raw[wood], pix[wood]))]
+        last = np.r_[pix[order][1:] != pix[order][:-1], True]
+        best_of = np.full(h * w, -1, np.int64)
+        best_of[pix[order][last]] = order[last]
+        b = best_of[pix[wood]]
+        depth = half_px.ravel()[pix[wood]] * z[b] / focal[i] + half[wood] + half[b]
+        explained[wood] += (raw[wood] >= (1.0 - tolerance) * raw[b]) | (np.abs(z[wood] - z[b]) <= depth)
+    out[voted] = explained / np.maximum(seen, 1)
+    return out
 
 
 def main_component(carved: CarvedTree, center, radius: float) -> np.ndarray:

@@ -12,8 +12,10 @@ Stages, each one call into a domain folder or a sibling module:
    (:func:`treeform.segment.thin.thin_dark_lines`: the twigs a segmenter's stride loses).
 4. **points and partition** (§4.1–4.2): :func:`carve.carve_tree` — the tree's points as
    the visual hull of the mattes (the piece the cameras look at, :func:`carve.main_component`),
-   each with the silhouette half-width seen from the views and wood votes; thin or wood-voted
-   points are branch, the rest leaf.
+   each with the silhouette half-width seen from the views and wood votes, each view's wood
+   pixel given to the tree's cells on its ray that explain it best (:func:`carve.explain_wood`),
+   not to every cell the ray crosses in the crown; thin or wood-voted points are branch, the
+   rest leaf.
 5. **visible branch graph** (§4.3): :func:`branch_graph.branch_skeleton`.
 6. **hidden branches** (§5): constrained growth — the project's space colonization from
    the visible skeleton toward the leaf points (seed 002 grows its replication blocks
@@ -43,7 +45,8 @@ __all__ = ["MIN_GROUND_POINTS", "MIN_VIEW_IOU", "STAGES", "MultiviewResult", "co
            "reconstruct_multiview", "registration_warning", "scale_warning"]
 
 WOOD_VOTE = 0.25
-"""A carved cell is branch when more than this share of the views that see it label it wood."""
+"""A carved cell is branch when more than this share of the views that see it label it wood (the
+votes explained along the views' rays, :func:`~treeform.methods.multiview.carve.explain_wood`)."""
 
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
@@ -342,7 +345,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     from treeform.growth.space_colonization import space_colonization
     from treeform.io.outputs import check_out_dir
     from treeform.methods.multiview.branch_graph import branch_skeleton
-    from treeform.methods.multiview.carve import carve_tree, main_component
+    from treeform.methods.multiview.carve import carve_tree, explain_wood, main_component
     from treeform.methods.multiview.trunk import trunk_axis, trunk_diameter
     from treeform.sfm import load_photos, run_sfm, to_tree_frame
     from treeform.structures import TreeSkeleton
@@ -431,7 +434,11 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         # branch against the sky). Thinness alone is no test in a leafy crown: a porous crown's hull is
         # full of thin fragments (measured on a 24-view capture with the true mattes: the visible
         # skeleton strays 17 % of the height from the true branches with thinness, 0.9-4.9 % with votes)
-        branch = (carved.wood > WOOD_VOTE) | (carved.thickness < max(2.0 * voxel, 0.006 * height))
+        # a view's wood pixel is one limb at one depth, not every cell its ray crosses in the crown: the
+        # votes go to the tree's cells that explain it best (on the 24-view oak capture the branch cells
+        # went 79,000 -> 23,000 and the skeleton 3.3 -> 1.2 % of the height; BENCHMARKS.md)
+        votes = explain_wood(carved.points, carved.wood, K, sfm.cam_to_world, labels, size=carved.size)
+        branch = (votes > WOOD_VOTE) | (carved.thickness < max(2.0 * voxel, 0.006 * height))
         visible = branch_skeleton(carved.points[branch], carved.thickness[branch], link=2.5 * voxel,
                                   gap=0.03 * height, bin_width=max(3.0 * voxel, 0.008 * height),
                                   root=np.zeros(3)) if branch.sum() >= 2 else None
