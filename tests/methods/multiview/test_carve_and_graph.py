@@ -225,3 +225,25 @@ def test_wood_votes_go_to_the_limbs_not_along_their_rays():
     assert np.all(votes <= ct.wood + 1e-12)
     with pytest.raises(InputError, match="tolerance"):
         explain_wood(ct.points, ct.wood, K, c2w, labels, tolerance=1.5)
+
+
+def test_tree_pieces_keep_the_tree_and_its_clumps_and_drop_a_far_crown(scene):
+    from treeform.methods.multiview.carve import CarvedTree, tree_pieces
+
+    K, c2w, labels, _, _ = scene
+    ct = carve_tree(K, c2w, labels, box=([-4, -0.2, -4], [4, 8, 4]), voxel=0.05, tolerance=0.1)
+    g = (np.stack(np.meshgrid(*[np.arange(10)] * 3, indexing="ij"), -1).reshape(-1, 3) + 0.5) * 0.1
+    clump = g * 0.5 + [ct.points[:, 0].max() + 0.3, 4.2, -0.25]  # 0.5 m of 5-cm cells, 0.25 m off the crown
+    far = g + [6.0, 4.0, -0.5]  # a neighbour's crown 4 m off, out of the column
+    extra = np.concatenate([clump, far])
+    n = len(extra)
+    both = CarvedTree(np.concatenate([ct.points, extra]), np.concatenate([ct.size, np.r_[np.full(len(clump), 0.05),
+                                                                                        np.full(len(far), 0.1)]]),
+                      np.concatenate([ct.thickness, np.ones(n)]), np.concatenate([ct.wood, np.zeros(n)]),
+                      np.concatenate([ct.seen, np.full(n, 12)]), np.concatenate([ct.colors, np.zeros((n, 3), np.uint8)]),
+                      np.concatenate([ct.edge, np.zeros(n)]), np.concatenate([ct.support, np.ones(n)]))
+    keep = tree_pieces(both, [0, 0, 0], 1.0, gap=0.4)
+    assert keep[:len(ct)].all()  # the tree's own pieces, in the column or joined to it
+    assert keep[len(ct):len(ct) + len(clump)].all()  # a clump a gap of 0.25 m off
+    assert not keep[len(ct) + len(clump):].any()  # the far crown
+    assert not tree_pieces(both, [0, 0, 0], 1.0, gap=0.1)[len(ct):len(ct) + len(clump)].any()
