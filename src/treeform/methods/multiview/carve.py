@@ -96,6 +96,17 @@ def _project(points, w2c, K):
     return uv, z
 
 
+def _pixels(points, w2c, K, shape):
+    """Which points project into an image of ``shape`` (in front of the camera), their pixel's
+    row and column (clipped to the image, so they index it for every point) and their depth."""
+    h, w = shape
+    uv, z = _project(points, w2c, K)
+    ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    col = np.clip(np.nan_to_num(uv[:, 0]).astype(np.int64), 0, w - 1)
+    row = np.clip(np.nan_to_num(uv[:, 1]).astype(np.int64), 0, h - 1)
+    return ok, row, col, z
+
+
 def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float = 0.12, close_px: int = 2,
                width_px: int = 6, surface_voxel: float | None = None, images=None, progress=None) -> CarvedTree:
     """Carve the visual hull of the per-view tree masks on an octree.
@@ -251,11 +262,8 @@ def _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, image
     seen = np.zeros(n, np.int32)
     cols = [] if images is not None else None
     for i in range(len(K)):
-        uv, z = _project(points, w2c[i], K[i])
         h, w = labs[i].shape
-        ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-        col = np.clip(np.nan_to_num(uv[:, 0]).astype(int), 0, w - 1)
-        row = np.clip(np.nan_to_num(uv[:, 1]).astype(int), 0, h - 1)
+        ok, row, col, z = _pixels(points, w2c[i], K[i], (h, w))
         d = width[i][row, col] * z / focal[i]
         thick[i, ok] = d[ok]
         edge[ok] = np.minimum(edge[ok], (dist_in[i][row, col] * z / focal[i])[ok])
@@ -360,11 +368,8 @@ def explain_wood(points, votes, K, cam_to_world, labels, *, size=None, tolerance
     for i in range(len(K)):
         lab = np.asarray(labels[i])
         h, w = lab.shape
-        uv, z = _project(pts, w2c[i], K[i])
-        ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        ok, row, col, z = _pixels(pts, w2c[i], K[i], (h, w))
         seen += ok
-        col = np.clip(np.nan_to_num(uv[:, 0]).astype(np.int64), 0, w - 1)
-        row = np.clip(np.nan_to_num(uv[:, 1]).astype(np.int64), 0, h - 1)
         pix = row * w + col
         wood = np.flatnonzero(ok & (lab[row, col] == 2))
         if not len(wood):
