@@ -125,6 +125,26 @@ def test_main_tree_prefers_the_sharp_tree_over_a_larger_blurred_one():
     assert np.array_equal(main_tree(m, focus=flat), main_tree(m))
 
 
+def test_main_tree_keeps_a_dark_backlit_crown_over_a_smaller_lit_one():
+    # a crown against the light is dark and low in contrast, yet sharp: it stays the main tree,
+    # and a blurred tree behind still loses to it (the bare |Laplacian| took the lit clump beside it)
+    import cv2
+
+    rng = np.random.default_rng(1)
+    tex = rng.integers(0, 255, (120, 160, 3)).astype(np.uint8)
+    img = tex.copy()
+    img[:, :90] = tex[:, :90] // 10 + 5                       # backlit crown: grey about 17
+    img[:, 130:] = cv2.GaussianBlur(tex, (0, 0), 3.0)[:, 130:]  # a blurred tree behind
+    m = np.zeros((120, 160), bool)
+    m[20:110, 10:80] = True     # dark crown, 6300 px
+    m[30:70, 95:125] = True     # lit clump, 1200 px
+    m[10:110, 132:158] = True   # blurred, 2600 px
+    keep = main_tree(m, focus=focus_map(img))
+    assert keep[60, 40] and not keep[50, 110] and not keep[60, 145]
+    raw = main_tree(m, focus=focus_map(img, relative=False))   # the bare |Laplacian|: the lit clump
+    assert raw[50, 110] and not raw[60, 40]
+
+
 def test_missing_and_corrupt_weights_name_the_file_and_make_weights(tmp_path, celtis):
     with pytest.raises(ModelError, match=r"missing.*make weights"):
         Segmenter(tmp_path / "nope.onnx")

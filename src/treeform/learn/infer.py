@@ -59,6 +59,12 @@ def load_session(path) -> tuple:
     return _cached_session(str(p.resolve()), p.stat().st_mtime)
 
 
+FOCUS_SIGMA = 2.0
+"""Gaussian window (px at the network's size) of the local contrast that :func:`focus_map` divides by."""
+FOCUS_FLOOR = 4.0
+"""Grey levels added to that contrast, so flat sky and noise do not read as sharp."""
+
+
 def _components(mask: np.ndarray):
     import cv2
 
@@ -66,11 +72,29 @@ def _components(mask: np.ndarray):
     return n, lab, stats
 
 
-def focus_map(image: np.ndarray, side: int = 320) -> np.ndarray:
-    """(H, W) float32 local sharpness of an RGB image: |Laplacian| of its grey at ``side`` px.
+def focus_map(image: np.ndarray, side: int = 320, *, relative: bool = True) -> np.ndarray:
+    """(H, W) float32 local sharpness of an RGB image: |Laplacian| over local contrast, at ``side`` px.
 
     A photographed tree is in focus; trees behind it are often not. Measured at the
     network's working size so that JPEG noise and the photo's resolution matter little.
+    The |Laplacian| of the grey is divided by the grey's local standard deviation (Gaussian
+    window of :data:`FOCUS_SIGMA` px, plus :data:`FOCUS_FLOOR` grey levels): blur takes the
+    fine scale's energy away faster than the coarse scale's, while a dark crown against the
+    light is low in both. With the bare |Laplacian|, a backlit crown (grey about 16 of 255)
+    scored a quarter of a sunlit clump beside it, and the clump was taken for the tree (one
+    view of the 24-view oak capture: tree IoU 0.08 -> 0.72). ``relative=False`` gives the bare
+    |Laplacian| (contrast times sharpness), which :func:`~treeform.segment.classical.trunk_in_mask`
+    compares a trunk the mask missed with its crown by: a dark bin or hedge foot beside the trunk is
+    as sharp as the crown but far less contrasted (0.42 of the crown against 0.53 relative, where a
+    second pine's trunk scores 0.80 and 0.59).
+
+    >>> rng = np.random.default_rng(0)
+    >>> leaves = rng.integers(0, 255, (64, 64, 3)).astype(np.uint8)
+    >>> f_bright = focus_map(leaves, side=64)
+    >>> f_dark = focus_map(leaves // 8, side=64)          # the same texture, backlit
+    >>> import cv2; f_blur = focus_map(cv2.GaussianBlur(leaves, (0, 0), 2.0), side=64)
+    >>> bool(np.median(f_dark) > 0.5 * np.median(f_bright) > np.median(f_blur))
+    True
     """
     import cv2
 
@@ -80,8 +104,12 @@ def focus_map(image: np.ndarray, side: int = 320) -> np.ndarray:
     g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
     if s < 1.0:
         g = cv2.resize(g, (max(8, round(W * s)), max(8, round(H * s))), interpolation=cv2.INTER_AREA)
-    lap = np.abs(cv2.Laplacian(g, cv2.CV_32F, ksize=1))
-    return cv2.resize(lap, (W, H), interpolation=cv2.INTER_LINEAR) if s < 1.0 else lap
+    f = np.abs(cv2.Laplacian(g, cv2.CV_32F, ksize=1))
+    if relative:
+        mean = cv2.GaussianBlur(g, (0, 0), FOCUS_SIGMA)
+        var = cv2.GaussianBlur(g * g, (0, 0), FOCUS_SIGMA) - mean * mean
+        f /= np.sqrt(np.maximum(var, 0.0)) + FOCUS_FLOOR
+    return cv2.resize(f, (W, H), interpolation=cv2.INTER_LINEAR) if s < 1.0 else f
 
 
 def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarray | None = None,

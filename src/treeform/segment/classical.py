@@ -835,7 +835,7 @@ def trunk_in_mask(image: np.ndarray, mask: np.ndarray, *, ground: np.ndarray | N
     mask : ndarray, shape (H, W), bool
     ground : ndarray, shape (W,), int, optional
     focus : ndarray, shape (H, W), optional
-        Local sharpness (:func:`treeform.learn.infer.focus_map`).
+        Local sharpness and contrast (:func:`treeform.learn.infer.focus_map` with ``relative=False``).
 
     Returns
     -------

@@ -331,7 +331,8 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     if trunk:  # the trunk is wood, also where the network left it out below the crown
         from treeform.segment.classical import trunk_in_mask
 
-        stem = trunk_in_mask(img, tree, ground=g if ground else None, focus=focus)
+        stem = trunk_in_mask(img, tree, ground=g if ground else None,
+                             focus=focus_map(img, seg_net.side, relative=False))
         labels[stem] = 2
         p_tree = np.where(stem & ~tree, 1.0, p_tree)
         tree = tree | stem
