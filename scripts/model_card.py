@@ -231,7 +231,7 @@ def main():
               "Loss: cross-entropy (wood weighted), with cut-out pixels scored by the summed foliage + wood "
               "probability, plus a Dice term on wood (and, where a run says so, a per-scene Dice term on the tree). At run time the photo is seen at 320 px on its long "
               "side; the tree probability is upsampled, snapped to the photo's edges by a guided filter and "
-              "the main tree kept: the part with the largest area x (median sharpness)^2, so a blurred tree "
+              "the main tree kept: the part with the largest area x (median sharpness over local contrast)^2, so a blurred tree "
               "behind loses to the photographed one, and its neighbours (pieces closer than 2 % of the long side "
               "count as one part: a crown seen through sky gaps falls apart into pieces); then a band of 1.5 % of the long "
               "side around its edge is re-solved by closed-form matting (outline and sky gaps drawn from the "
