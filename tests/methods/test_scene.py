@@ -133,6 +133,23 @@ def test_the_ground_placement_puts_every_foot_back_on_its_pixel():
         place_on_ground([[10, 100]], [120], 640, 480)
 
 
+def test_one_foot_above_the_horizon_does_not_move_the_other_trees():
+    # a level camera (horizon at the middle row, 240): three feet on the lawn and a false one in a
+    # crown above the horizon. It used to lift the horizon over itself and push every tree away.
+    feet = np.array([[100.0, 400.0], [320.0, 330.0], [520.0, 360.0]])
+    tops = feet[:, 1] - 150.0
+    p = place_on_ground(feet, tops, 640, 480, camera_height=1.6, reference=0)
+    q = place_on_ground(np.vstack([feet, [[600.0, 200.0]]]), np.r_[tops, 120.0], 640, 480,
+                        camera_height=1.6, reference=0)
+    assert p.horizon_row == q.horizon_row == 240.0
+    assert np.allclose(q.positions[:3], p.positions) and np.allclose(q.distances[:3], p.distances)
+    assert q.distances[3] >= p.distances.max() and np.isfinite(q.positions).all()   # placed far, not behind the camera
+    # with the camera tilted up the feet are high: the horizon rises above all but the highest, the
+    # nearer feet stand nearer
+    up = place_on_ground(feet - [0, 150], tops - 150, 640, 480, camera_height=1.6, reference=0)
+    assert up.horizon_row < 210 and up.distances[0] < up.distances[2] <= up.distances[1]
+
+
 def test_every_tree_of_a_group_is_found_and_placed_within_a_tenth_of_their_spacing(group):
     from treeform.segment.instances import find_tree_instances
 

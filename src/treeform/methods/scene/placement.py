@@ -106,11 +106,17 @@ def place_on_ground(bases, tops, width: int, height: int, *, fov_y: float = 40.0
         raise InputError("tops: every tree's top must be above its foot")
     f = 0.5 * height / math.tan(math.radians(fov_y) / 2)
     cx, cy = 0.5 * width, 0.5 * height
-    horizon = min(cy, float(b[:, 1].min()) - 0.02 * height)  # a foot above the centre: the camera looked up
+    # the horizon lies above the feet: a foot above the centre says the camera looked up. With three
+    # feet or more the second highest decides, so one foot alone above the others (a false one in a
+    # crown or on a far hedge, a tree up a slope) does not lift the horizon and push every other tree
+    # away; a foot above the horizon is placed as far as one 2 % of the photo under it (where the
+    # foot that sets the horizon stands, too)
+    rows = np.sort(b[:, 1])
+    horizon = min(cy, float(rows[1 if len(rows) >= 3 else 0]) - 0.02 * height)
     ref = int(np.argmax(px)) if reference is None else int(reference)
     if not 0 <= ref < len(b):
         raise InputError(f"reference: expected 0..{len(b) - 1}, got {reference}")
-    drop = b[:, 1] - horizon  # pixels below the horizon, > 0
+    drop = np.maximum(b[:, 1] - horizon, 0.02 * height)  # pixels below the horizon, > 0
     cam_h = float(camera_height) if main_height is None else main_height * drop[ref] / px[ref]
     depth = f * cam_h / drop
     lateral = (b[:, 0] - cx) * depth / f
