@@ -235,3 +235,23 @@ def _glb_json(path: Path) -> str:
 
 if shutil.which(str(EXE)) is None and not EXE.exists():  # pragma: no cover - the console script is installed
     pytest.skip("treeform console script missing", allow_module_level=True)
+
+
+def test_a_trunk_foot_goes_down_to_where_the_bark_meets_the_lawn():
+    from treeform.segment.instances import trunk_end
+
+    img = np.zeros((40, 40, 3), np.uint8)
+    img[:] = (60, 140, 50)                       # lawn
+    img[5:30, 19:21] = (110, 95, 80)             # a trunk 2 px wide, its foot at row 29
+    m = np.zeros((40, 40), bool)
+    m[5:26, 19:21] = True                        # the mask stops 4 rows short
+    assert trunk_end(img, m, (19.5, 25.0), max_rows=8) == (19.5, 29.0)
+    assert trunk_end(img, m, (19.5, 25.0), max_rows=3)[1] == 28.0          # no farther than asked
+    # a trunk leaning a pixel per row is followed; a lawn the trunk's colour gives nothing to follow
+    lean = img.copy()
+    lean[26:30, 19:21] = (60, 140, 50)
+    for r in range(26, 30):
+        lean[r, 19 + (r - 25):21 + (r - 25)] = (110, 95, 80)
+    assert trunk_end(lean, m, (19.5, 25.0), max_rows=8) == (22.5, 29.0)   # along its left edge
+    same = np.full_like(img, (110, 95, 80))
+    assert trunk_end(same, m, (19.5, 25.0), max_rows=8) == (19.5, 25.0)
