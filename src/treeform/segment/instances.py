@@ -418,13 +418,12 @@ def trunk_end(image: np.ndarray, mask: np.ndarray, foot, *, max_rows: int) -> tu
         return (u, v)
     trunk = np.median(img[y0:iv + 1, x0:x1][near], axis=0)
     ya, yb = max(0, iv - 3), min(H, iv + 1 + int(max_rows))
-    side = np.zeros((H, W), bool)
-    side[ya:yb, max(0, iu - 10):max(0, iu - 3)] = True
-    side[ya:yb, min(W, iu + 4):min(W, iu + 11)] = True
-    side &= ~mask
+    xa, xb = max(0, iu - 10), min(W, iu + 11)
+    cols = np.arange(xa, xb)
+    side = (np.abs(cols - iu) >= 4)[None, :] & ~mask[ya:yb, xa:xb]  # beside the trunk, off the mask
     if side.sum() < 8:
         return (u, v)
-    ground = np.median(img[side], axis=0)
+    ground = np.median(img[ya:yb, xa:xb][side], axis=0)
     if np.linalg.norm(trunk - ground) < 25.0:
         return (u, v)
     col, last = iu, iv

@@ -331,8 +331,9 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     if trunk:  # the trunk is wood, also where the network left it out below the crown
         from treeform.segment.classical import trunk_in_mask
 
+        # (the focus test applies to a trunk found below the mask, which only the ground line allows)
         stem = trunk_in_mask(img, tree, ground=g if ground else None,
-                             focus=focus_map(img, seg_net.side, relative=False))
+                             focus=focus_map(img, seg_net.side, relative=False) if ground else None)
         labels[stem] = 2
         p_tree = np.where(stem & ~tree, 1.0, p_tree)
         tree = tree | stem
