@@ -11,7 +11,8 @@ finds the trees and :func:`treeform.methods.scene.placement.place_on_ground` pla
 of its foot's pixel (one found foot for one tree, Hungarian assignment); found feet left over
 are false trees. Placement error: the distance between each found tree's position and the
 truth, both relative to the reference tree, divided by the composite's smallest spacing
-between two trees (goal: within 10 %).
+between two trees (goal: within 10 %). Each tree's share left in view by the nearer ones (its pixels in
+the composite over its pixels alone, ``group_scene``'s ``areas_px``) tells hidden trees from missed ones.
 
 Run: `.venv/bin/python benchmarks/bench_scene.py [--cases 40] [--seed 0] [--spacing 5] [--feet rules|learned|both]`
 """
@@ -62,7 +63,10 @@ def score(inst, sc, p, spacing: float) -> dict:
 
     truth_px = sc["feet_px"]
     found = np.array([t.base for t in inst]) if inst else np.zeros((0, 2))
-    res = {"trees": len(p), "found": len(inst), "matched": 0, "false": len(inst), "errors": []}
+    visible = [round(float(np.count_nonzero(sc["instances"] == k + 1) / max(1, sc["areas_px"][k])), 3)
+               for k in range(len(p))]  # the share of each tree the nearer ones leave in view
+    res = {"trees": len(p), "found": len(inst), "matched": 0, "false": len(inst), "errors": [],
+           "visible": visible, "missed": list(range(len(p)))}
     if not len(inst):
         return res
     cost = np.linalg.norm(found[:, None] - truth_px[None], axis=2)
@@ -70,6 +74,7 @@ def score(inst, sc, p, spacing: float) -> dict:
     ok = cost[fi, ti] <= 0.03 * W
     fi, ti = fi[ok], ti[ok]
     res["matched"], res["false"] = int(len(fi)), int(len(inst) - len(fi))
+    res["missed"] = sorted(set(range(len(p))) - set(ti.tolist()))
     pl = place_on_ground(found, [t.top for t in inst], W, H, fov_y=FOV, camera_height=CAM_H)
     ref = pl.reference
     if ref not in fi:  # the reference is a false tree: no common origin to compare with
@@ -121,17 +126,25 @@ def main():
     false = sum(r["false"] for r in rows)
     all_found = np.mean([r["matched"] == r["trees"] and r["false"] == 0 for r in rows])
     errs = [e for r in rows for e in r["errors"]]
+    vis = np.array([v for r in rows for v in r["visible"]])
+    hit = np.array([k not in r["missed"] for r in rows for k in range(r["trees"])])
+    half = vis >= 0.5
+    missed_vis = sorted(vis[~hit].tolist())
     summary = {
         "machine": machine(), "cases": len(rows), "trees": trees, "recall": round(matched / trees, 4),
         "false_trees": false, "share_cases_exact": round(float(all_found), 4),
         "placement_error_over_spacing": {"median": round(float(np.median(errs)), 4) if errs else None,
                                          "p90": round(float(np.percentile(errs, 90)), 4) if errs else None,
                                          "share_le_0.1": round(float(np.mean(np.array(errs) <= 0.1)), 4) if errs else None},
+        "trees_half_visible": int(half.sum()), "found_half_visible": int((hit & half).sum()),
+        "missed_visible_shares": missed_vis,
         "seconds_median": round(statistics.median(times), 3), "seed": args.seed, "feet": args.feet,
         "feet_threshold": args.feet_threshold,
     }
     print(f"# {machine()}\n{len(rows)} composites, {trees} trees: found {matched} ({100 * matched / trees:.1f} %), "
           f"{false} false trees; every tree and no other in {100 * all_found:.0f} % of the composites")
+    print(f"trees at least half in view (not hidden by nearer ones): found {int((hit & half).sum())} of "
+          f"{int(half.sum())}; the missed trees' visible shares: {', '.join(f'{v:.2f}' for v in missed_vis) or 'none'}")
     if errs:
         print(f"placement error / spacing: median {np.median(errs):.3f}, 90th percentile "
               f"{np.percentile(errs, 90):.3f}, share <= 0.1: {100 * np.mean(np.array(errs) <= 0.1):.0f} %")

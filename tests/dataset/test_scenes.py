@@ -214,3 +214,18 @@ def test_group_scene_truth_foot_is_on_each_library_trees_trunk():
         col = sp.rgba[low, max(0, fx - 1):fx + 2]
         bark = (col[..., 3] > 127) & (col[..., 1].astype(int) <= np.maximum(col[..., 0], col[..., 2]).astype(int) + 8)
         assert bark.sum() >= 5, (sp.name, fx)
+
+
+def test_group_scene_areas_are_each_tree_alone():
+    """``areas_px`` is each tree's pixel count drawn alone: a tree by itself is fully visible, and
+    a tree standing behind a nearer one shows less of itself than it would alone."""
+    from treeform.data import data_path
+    from treeform.dataset.scenes import group_scene, load_cutouts
+
+    sp = load_cutouts(data_path("library"))[:2]
+    alone = group_scene(sp[:1], [[0.0, 15.0]], [6.0], np.random.default_rng(0), size=(320, 240))
+    assert alone["areas_px"][0] == np.count_nonzero(alone["instances"] == 1) > 100
+    both = group_scene([sp[1], sp[0]], [[0.3, 20.0], [0.0, 15.0]], [6.0, 6.0], np.random.default_rng(0), size=(320, 240))
+    seen = np.array([np.count_nonzero(both["instances"] == k + 1) for k in range(2)])
+    assert seen[1] == both["areas_px"][1] == alone["areas_px"][0]  # the near tree: whole, as alone
+    assert 0 < seen[0] < 0.9 * both["areas_px"][0]  # the far one: partly behind the near one

@@ -723,7 +723,9 @@ def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y:
     dict
         ``image`` (H, W, 3) uint8; ``instances`` (H, W) uint8 (k + 1 where tree k is seen, 0
         elsewhere); ``feet_px`` (N, 2) (u, v), the pixel of each foot (where its trunk meets the
-        ground); ``tops_px`` (N,) each top row.
+        ground); ``tops_px`` (N,) each top row; ``areas_px`` (N,) each tree's pixels were it alone
+        in the photo (``(instances == k + 1).sum() / areas_px[k]`` is the share of tree ``k`` that
+        the trees before it leave visible).
     """
     W, H = (int(x) for x in size)
     feet = np.asarray(feet, np.float64).reshape(-1, 2)
@@ -743,6 +745,7 @@ def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y:
     lab = np.zeros((H, W), np.uint8)
     feet_px = np.zeros((len(feet), 2))
     tops = np.zeros(len(feet))
+    areas = np.zeros(len(feet), np.int64)
     for k in np.argsort(-feet[:, 1]):  # far to near
         x, z = feet[k]
         u, v = W / 2 + f * x / z, horizon + f * camera_height / z
@@ -752,7 +755,10 @@ def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y:
         sc = hpx / rgba.shape[0]
         shift = (0.5 * (rgba.shape[1] - 1) - fx) * sc
         _paste(img, lab, rgba, None, hpx, u + shift, v + 1.0, label_value=k + 1)
+        solo = np.zeros((H, W), np.uint8)  # the tree alone: how much of it the nearer ones hide
+        _paste(np.zeros((H, W, 3), np.float32), solo, rgba, None, hpx, u + shift, v + 1.0, label_value=1)
+        areas[k] = np.count_nonzero(solo)
         tops[k] = v - hpx + 1.0
         feet_px[k] = (u, v)
     out = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
-    return {"image": out, "instances": lab, "feet_px": feet_px, "tops_px": tops}
+    return {"image": out, "instances": lab, "feet_px": feet_px, "tops_px": tops, "areas_px": areas}
