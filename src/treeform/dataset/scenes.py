@@ -755,9 +755,7 @@ def group_scene(sprites, feet, heights, rng, *, size: tuple = (960, 720), fov_y:
         sc = hpx / rgba.shape[0]
         shift = (0.5 * (rgba.shape[1] - 1) - fx) * sc
         _paste(img, lab, rgba, None, hpx, u + shift, v + 1.0, label_value=k + 1)
-        solo = np.zeros((H, W), np.uint8)  # the tree alone: how much of it the nearer ones hide
-        _paste(np.zeros((H, W, 3), np.float32), solo, rgba, None, hpx, u + shift, v + 1.0, label_value=1)
-        areas[k] = np.count_nonzero(solo)
+        areas[k] = np.count_nonzero(lab == k + 1)  # all of it: the nearer trees come later
         tops[k] = v - hpx + 1.0
         feet_px[k] = (u, v)
     out = np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
