@@ -14,7 +14,7 @@ truth, both relative to the reference tree, divided by the composite's smallest 
 between two trees (goal: within 10 %). Each tree's share left in view by the nearer ones (its pixels in
 the composite over its pixels alone, ``group_scene``'s ``areas_px``) tells hidden trees from missed ones.
 
-Run: `.venv/bin/python benchmarks/bench_scene.py [--cases 40] [--seed 0] [--spacing 5] [--feet rules|learned|both]`
+Run: `.venv/bin/python benchmarks/bench_scene.py [--cases 40] [--seed 0] [--spacing 5] [--feet rules|learned|both] [--feet-weights ONNX]`
 """
 
 from __future__ import annotations
@@ -100,6 +100,8 @@ def main():
                     "(find_tree_instances' feet=; default its DEFAULT_FEET)")
     ap.add_argument("--feet-threshold", type=float, default=None,
                     help="lowest heatmap peak taken as a foot (default: FEET_THRESHOLD of --feet)")
+    ap.add_argument("--feet-weights", type=Path, default=None,
+                    help="FeetNet ONNX weights to score instead of the shipped feet.onnx (a training run's model.onnx)")
     args = ap.parse_args()
     from treeform.segment.instances import DEFAULT_FEET, FEET_THRESHOLD
 
@@ -116,7 +118,8 @@ def main():
         sc, p, h, spacing = c
         t0 = time.perf_counter()
         try:
-            inst = find_tree_instances(sc["image"], feet=args.feet, feet_threshold=args.feet_threshold)
+            inst = find_tree_instances(sc["image"], feet=args.feet, feet_threshold=args.feet_threshold,
+                                       feet_weights=args.feet_weights)
         except NoTreeFoundError:
             inst = []
         times.append(time.perf_counter() - t0)

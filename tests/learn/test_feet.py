@@ -63,6 +63,20 @@ def test_scenes_are_reproducible_and_their_feet_stand_on_their_trees(sprites):
         feet_scene([], np.random.default_rng(0))
 
 
+def test_layout_places_trees_nearly_behind_others_as_asked():
+    from treeform.dataset.feet_scenes import _layout
+
+    W, H = 400, 300
+    for seed in range(5):
+        t = _layout(6, np.random.default_rng(seed), W, H, 120, behind=1.0, behind_aside=0.05)
+        u, v = np.array([a[0] for a in t]), np.array([a[1] for a in t])
+        for k in range(1, 6):  # each later tree a little aside of and farther than one placed before it
+            near = np.abs(u[:k] - u[k]) <= 0.05 * W + 1e-9
+            assert near.any() and (v[k] <= v[:k][near].max() + 1e-9)
+    spread = [np.ptp([a[0] for a in _layout(6, np.random.default_rng(s), W, H, 120, behind=0.0)]) for s in range(5)]
+    assert min(spread) > 0.25 * W  # none behind: the trees scatter over the frame
+
+
 def test_score_feet_counts_matches_misses_and_false_feet():
     s = score_feet([np.array([[10.0, 10.0, 0.9], [50.0, 50.0, 0.5]])], [np.array([[11.0, 10.0], [80.0, 80.0]])],
                    [np.array([True, True])], tolerance=5.0)

@@ -82,6 +82,10 @@ def feet_cmd(
     renders: Optional[Path] = typer.Option(None, "--renders", help="Synthetic trees (treeform dataset generate, or a "
                                            "sprite pack) drawn beside the cut-outs."),
     render_fraction: float = typer.Option(0.5, "--render-fraction", help="Share of the trees drawn from --renders."),
+    behind: float = typer.Option(0.35, "--behind", help="Chance that each tree after a scene's first stands nearly "
+                                 "behind another."),
+    behind_aside: float = typer.Option(0.1, "--behind-aside", help="How far aside of it, at most, as a share of "
+                                       "the scene's width."),
     steps: int = typer.Option(3000, "--steps", help="Optimiser steps."),
     batch: int = typer.Option(16, "--batch", help="Scenes per step."),
     seed: int = seed_option(),
@@ -101,6 +105,7 @@ def feet_cmd(
     from treeform.learn.train_feet import train_feet
 
     m = run_api(train_feet, cutouts, out, photos=photos, renders=renders, render_fraction=render_fraction,
+                behind=behind, behind_aside=behind_aside,
                 steps=steps, batch=batch, seed=seed, device=device, workers=workers, repeats=repeats,
                 init=str(init) if init else "", lr=lr, max_minutes=max_minutes, test_scenes=test_scenes,
                 display=TrainProgress("feet"),

@@ -12,9 +12,9 @@ the foot's column), and randomised as the segmenter's scenes are:
 
 - **trees**: 1-6 of them (and, in 8 % of the scenes, none); sizes from a sapling to a tree
   taller than the frame (the height in pixels follows the distance: a foot lower in the
-  frame is nearer, so larger); in 35 % of the scenes one tree stands nearly behind another
-  (a few pixels to a tenth of the frame aside, slightly farther), the case where two feet
-  merge in a mask; seasons, bark tints and thinning of
+  frame is nearer, so larger); each tree after the first stands, with a chance of 35 %
+  (``behind``), nearly behind another (a few pixels to a tenth of the frame aside,
+  ``behind_aside``, slightly farther), the case where two feet merge in a mask; seasons, bark tints and thinning of
   :func:`~treeform.dataset.scenes._tree_look`;
 - **backgrounds**: :func:`~treeform.dataset.scenes.group_scene`'s lawn under a sky, the
   procedural skies, lawns, roads and buildings, or a blurred real photo
@@ -69,14 +69,15 @@ def _background(rng, W: int, H: int, photos) -> tuple[np.ndarray, int]:
     return np.ascontiguousarray(img), horizon
 
 
-def _layout(n: int, rng, W: int, H: int, horizon: int) -> list[tuple[float, float, float]]:
+def _layout(n: int, rng, W: int, H: int, horizon: int, behind: float = 0.35,
+            behind_aside: float = 0.1) -> list[tuple[float, float, float]]:
     """(u, v, height_px) of ``n`` trees on one ground plane: v below the horizon, height ~ v - horizon."""
     trees = []
     ratio = rng.uniform(2.0, 5.5)  # tree height / camera height, shared roughly by the group
     for _ in range(n):
-        if trees and rng.random() < 0.35:  # nearly behind a tree already placed: a little aside, a little farther
+        if trees and rng.random() < behind:  # nearly behind a tree already placed: a little aside, a little farther
             u0, v0, _ = trees[int(rng.integers(len(trees)))]
-            u = u0 + rng.choice([-1, 1]) * rng.uniform(0.005, 0.1) * W
+            u = u0 + rng.choice([-1, 1]) * rng.uniform(0.005, behind_aside) * W
             v = v0 - rng.uniform(0.005, 0.08) * H
         else:
             u = rng.uniform(0.03, 0.97) * W if rng.random() < 0.85 else rng.uniform(-0.05, 1.05) * W
@@ -88,7 +89,8 @@ def _layout(n: int, rng, W: int, H: int, horizon: int) -> list[tuple[float, floa
 
 
 def feet_scene(sprites, rng, *, size: tuple = (384, 288), photos=(), empty: float = 0.08,
-               max_trees: int = 6, renders=(), render_fraction: float = 0.0) -> dict:
+               max_trees: int = 6, renders=(), render_fraction: float = 0.0, behind: float = 0.35,
+               behind_aside: float = 0.1) -> dict:
     """One randomised scene of several trees with the pixel of each trunk's foot (see the module docstring).
 
     Parameters
@@ -107,6 +109,10 @@ def feet_scene(sprites, rng, *, size: tuple = (384, 288), photos=(), empty: floa
         ``treeform dataset generate``), a second pool of sprites.
     render_fraction : float
         Share of the trees drawn from ``renders`` (when given).
+    behind : float
+        Chance that each tree after the first stands nearly behind one already placed.
+    behind_aside : float
+        How far aside of that tree it may stand, as a share of the frame's width (0.5 % up to this).
 
     Returns
     -------
@@ -144,7 +150,7 @@ def feet_scene(sprites, rng, *, size: tuple = (384, 288), photos=(), empty: floa
     if rng.random() < 0.2 and not bush_front:
         _bushes(img, other, rng, horizon)
     n = 0 if rng.random() < empty else int(rng.integers(1, max_trees + 1))
-    layout = sorted(_layout(n, rng, W, H, horizon), key=lambda t: t[1])  # far (high in the frame) to near
+    layout = sorted(_layout(n, rng, W, H, horizon, behind, behind_aside), key=lambda t: t[1])  # far (high in the frame) to near
     lab = np.zeros((H, W), np.uint8)
     feet = np.zeros((len(layout), 2))
     for k, (u, v, hpx) in enumerate(layout):

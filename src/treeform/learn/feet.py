@@ -129,11 +129,12 @@ class FeetStream:
     """
 
     def __init__(self, sprites, *, size: tuple = (384, 288), seed: int = 0, photos=(), empty: float = 0.08,
-                 renders=(), render_fraction: float = 0.0):
+                 renders=(), render_fraction: float = 0.0, behind: float = 0.35, behind_aside: float = 0.1):
         if not sprites:
             raise InputError("sprites: expected at least one tree sprite")
         self.sprites, self.size, self.seed, self.photos, self.empty = list(sprites), tuple(size), int(seed), list(photos), empty
         self.renders, self.render_fraction = list(renders), float(render_fraction)
+        self.behind, self.behind_aside = float(behind), float(behind_aside)
 
     def chunk(self, r: int, n: int) -> tuple:
         """Round ``r``: images (n, H, W, 3) uint8, and per scene the feet (k, 2) and visibility (k,)."""
@@ -145,7 +146,8 @@ class FeetStream:
         for i in range(n):
             rng = np.random.default_rng([self.seed, 31, int(r), i])
             sc = feet_scene(self.sprites, rng, size=self.size, photos=self.photos, empty=self.empty,
-                            renders=self.renders, render_fraction=self.render_fraction)
+                            renders=self.renders, render_fraction=self.render_fraction, behind=self.behind,
+                            behind_aside=self.behind_aside)
             images[i] = sc["image"]
             feet.append(sc["feet"])
             vis.append(sc["visible"])

@@ -51,6 +51,10 @@ class FeetTrainConfig:
     """Share of scenes without a tree."""
     render_fraction: float = 0.5
     """Share of the trees drawn from the synthetic renders (when ``renders`` are given)."""
+    behind: float = 0.35
+    """Chance that each tree after a scene's first stands nearly behind another (:func:`~treeform.dataset.feet_scenes.feet_scene`)."""
+    behind_aside: float = 0.1
+    """How far aside of it, at most, as a share of the scene's width."""
     init: str = ""
     """ONNX weights of a FeetNet of the same width to start from (fine-tuning)."""
     chunk: int = 128
@@ -91,6 +95,8 @@ class FeetTrainConfig:
         check_range(self.offset_weight, "offset_weight", 0.0, 100.0)
         check_range(self.empty, "empty", 0.0, 1.0)
         check_range(self.render_fraction, "render_fraction", 0.0, 1.0)
+        check_range(self.behind, "behind", 0.0, 1.0)
+        check_range(self.behind_aside, "behind_aside", 0.005, 1.0)
         check_range(self.max_minutes, "max_minutes", 0.0, 10**6)
         if not re.fullmatch(r"cpu|auto|cuda(:\d+)?|mps", str(self.device)):
             raise InputError(f"device: expected cpu, cuda, cuda:N, mps or auto, got {self.device!r}")
@@ -102,7 +108,7 @@ class FeetTrainConfig:
         return cls(**check_known_options(cls, d))
 
 
-def _feet_stream(cutouts, photos, renders, *, size, seed, empty, render_fraction):
+def _feet_stream(cutouts, photos, renders, *, size, seed, empty, render_fraction, behind=0.35, behind_aside=0.1):
     """The training :class:`~treeform.learn.feet.FeetStream` (also built in each worker process)."""
     from treeform.dataset.scenes import load_cutouts, load_photos
     from treeform.learn.data import render_sprites
@@ -112,7 +118,7 @@ def _feet_stream(cutouts, photos, renders, *, size, seed, empty, render_fraction
     bg = load_photos(photos, split="train") if photos is not None else []
     rend = render_sprites(renders) if renders is not None else []
     return FeetStream(sprites, size=size, seed=seed, photos=bg, empty=empty, renders=rend,
-                      render_fraction=render_fraction)
+                      render_fraction=render_fraction, behind=behind, behind_aside=behind_aside)
 
 
 def _batch_targets(feet, visible, n_rows: int, n_cols: int):
@@ -184,7 +190,8 @@ def train_feet(cutouts, out, *, photos=None, renders=None, config: FeetTrainConf
 
     size = (cfg.width, cfg.height)
     make_stream = functools.partial(_feet_stream, cutouts, photos, renders, size=size, seed=cfg.seed, empty=cfg.empty,
-                                    render_fraction=cfg.render_fraction)
+                                    render_fraction=cfg.render_fraction, behind=cfg.behind,
+                                    behind_aside=cfg.behind_aside)
     dev = _device(torch, cfg.device)
     torch.manual_seed(cfg.seed)
     model = FeetNet(cfg.channels).to(dev)
