@@ -10,9 +10,11 @@ in pixels, i.e. how far away it stands. Both are drawn 4x larger and area-averag
 Scores per view: silhouette IoU (coverage >= 1/2), and SSIM of the two pictures over a
 common grey background inside the union of the two silhouettes. ``cloud`` scores the near-tree
 representation the same way: the clipped billboard cloud (144 leaflet billboards, seed 001 §4.2)
-over the impostor's ``wood.glb``.
+over the impostor's ``wood.glb``. The relief impostor marches the tree's opacity grid
+(``opacity.npz``: it hits where half the light is blocked, so a porous crown's gaps stay open)
+unless ``--opacity 0`` (the RDM's solid envelope, seed 001 §4.1 as published).
 
-Run: `.venv/bin/python benchmarks/bench_impostor.py [--sizes 32,64,128,256] [--trees sample,oak,pine]`
+Run: `.venv/bin/python benchmarks/bench_impostor.py [--sizes 32,64,128,256] [--trees sample,oak,pine] [--opacity N]`
 """
 
 from __future__ import annotations
@@ -97,7 +99,8 @@ def _cloud_render(imp, cam):
         cloud.release()
 
 
-def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = "synthesis") -> dict:
+def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = "synthesis",
+             opacity: int | None = None) -> dict:
     """(``colors`` 'planar': the synthesized cubemap plus the front view as a billboard, seed 001 §4.1;
     'cloud': the clipped billboard cloud over the trunk and limbs, seed 001 §4.2.)"""
     planar_colors, cloud = colors == "planar", colors == "cloud"
@@ -110,7 +113,8 @@ def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = 
     from treeform.render.impostor import render_rdm_impostor
 
     t0 = time.perf_counter()
-    imp = make_impostor(tree_dir, out=False, rdm_resolution=rdm_resolution, colors=colors)
+    kw = {} if opacity is None else {"opacity_resolution": opacity}
+    imp = make_impostor(tree_dir, out=False, rdm_resolution=rdm_resolution, colors=colors, **kw)
     t_imp = time.perf_counter() - t0
     mesh = read_glb_mesh(tree_dir / "tree.glb")
     pts = np.concatenate([p.positions for p in mesh.parts if p.n_vertices])
@@ -124,7 +128,8 @@ def fidelity(tree_dir: Path, sizes, *, rdm_resolution: int = 128, colors: str = 
             if cloud:
                 mb, b = supersampled(lambda c: _cloud_render(imp, c), cam)
             else:
-                mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color, planar=planar), cam)
+                mb, b = supersampled(lambda c: render_rdm_impostor(imp.rdm, c, color=imp.color, planar=planar,
+                                                                   opacity=imp.opacity), cam)
             union = ma | mb
             rows.append({"size": size, "azimuth": az, "iou": round(iou(mb, ma), 4),
                          "ssim": round(ssim(b, a, union), 4) if size >= 16 else None,
@@ -140,15 +145,18 @@ def main():
     ap.add_argument("--colors", default="synthesis,planar,baked,cloud",
                     help="what to score: the relief impostor with make_impostor's colors or planar (the front view "
                          "as a billboard), or cloud (the clipped billboard cloud over the wood)")
+    ap.add_argument("--opacity", type=int, default=None,
+                    help="voxels along the opacity grid's edge (default make_impostor's; 0: none, the RDM's solid relief)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the trees here (default: a temporary folder)")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         trees = make_trees(work, args.trees.split(","))
-        res = {f"{name} ({c})": fidelity(d, sizes, rdm_resolution=args.rdm, colors=c)
+        res = {f"{name} ({c})": fidelity(d, sizes, rdm_resolution=args.rdm, colors=c, opacity=args.opacity)
                for name, d in trees.items() for c in args.colors.split(",")}
-    print(f"# Impostor fidelity: relief-mapped RDM ({args.rdm}² faces) vs full mesh, 8 azimuths, "
+    print(f"# Impostor fidelity: relief-mapped RDM ({args.rdm}² faces, opacity grid "
+          f"{'default' if args.opacity is None else args.opacity}) vs full mesh, 8 azimuths, "
           f"{ELEVATION:.0f}° up\n\nmachine: {machine()}\n")
     print("| tree | tree height (px) | silhouette IoU, median (min) | SSIM, median (min) |\n|---|---|---|---|")
     summary = {}

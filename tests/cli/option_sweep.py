@@ -47,6 +47,8 @@ VALID = {
     ("train feet", "--workers", "0"): "0 = scenes composed in the training process (documented)",
     ("train feet", "--render-fraction", "0"): "no synthetic renders",
     ("train feet", "--max-minutes", "0"): "0 = no time limit (documented)",
+    ("train feet", "--behind", "0"): "no tree stands nearly behind another",
+    ("impostor", "--opacity", "0"): "0 = no opacity grid: the RDM's solid relief (documented)",
     ("dataset generate", "--photo-fraction", "0"): "no photo backgrounds",
     ("dataset generate", "--bare", "0"): "no leafless samples (the default)",
     ("animate", "--wind", "0"): "still air: a still, looping animation",

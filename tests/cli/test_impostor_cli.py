@@ -25,8 +25,8 @@ def test_impostor_of_a_grown_tree(grown, gl):
     imp = grown / "impostor"
     names = sorted(p.name for p in imp.iterdir())
     assert names == sorted([f"color_{n}.png" for n in ("px", "nx", "py", "ny", "pz", "nz")]
-                           + ["cloud.npz", "color_cross.png", "front.png", "impostor.json", "leaflets", "rdm.npz",
-                              "wood.glb"])
+                           + ["cloud.npz", "color_cross.png", "front.png", "impostor.json", "leaflets", "opacity.npz",
+                              "rdm.npz", "wood.glb"])
     assert {p.name for p in (imp / "leaflets").iterdir()} >= {"rgba.png", "normal.png", "centroid.png", "ao.png",
                                                               "depth.png", "type.png", "leaflets.json"}
     faces = [np.asarray(Image.open(imp / f"color_{n}.png")) for n in ("px", "nx", "py", "ny", "pz", "nz")]
@@ -61,6 +61,15 @@ def test_impostor_of_a_grown_tree(grown, gl):
     # the billboard centres sit among the leaves, not along the bare trunk below the crown
     leaf_lo = leaves.reshape(-1, 3).min(0)
     assert (back.cloud_points[:, 1] >= leaf_lo[1] - 1e-4).all()
+    # the opacity grid read back: the default resolution, a cube around the whole tree, opaque where the leaves are
+    from treeform.methods.envelope.impostor import OPACITY_RESOLUTION
+
+    og = back.opacity
+    assert og.resolution == OPACITY_RESOLUTION == manifest["opacity"]["resolution"]
+    lo, hi = og.bounds()
+    assert (verts.min(0) >= lo).all() and (verts.max(0) <= hi).all()
+    at_leaves = og.sample(leaves.reshape(-1, 3)[::7])
+    assert np.median(at_leaves) > 20 * og.sample(np.array([lo + 0.01 * (hi - lo)]))[0] + 1e-9 and np.median(at_leaves) > 0
     # same seed, same files
     proc = cli("impostor", grown, "--face", "64", "--rdm-resolution", "32", "--seed", "1", "--out", grown / "again")
     assert proc.returncode == 0, proc.stderr
@@ -80,9 +89,12 @@ def test_baked_colours_of_a_grown_tree(grown, gl, tmp_path):
     assert manifest["color"]["made_by"] == "baked"
     faces = [np.asarray(Image.open(out / f"color_{n}.png")).reshape(-1, 3).mean(0) for n in ("px", "nx", "pz", "nz")]
     assert all(f[1] > f[2] for f in faces)  # the leaves' green on the four sides
-    proc = cli("impostor", grown, "--face", "32", "--rdm-resolution", "32", "--colors", "baked", "--out", tmp_path / "b2")
+    proc = cli("impostor", grown, "--face", "32", "--rdm-resolution", "32", "--colors", "baked", "--out", tmp_path / "b2",
+               "--opacity", "0")
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "b2" / "color_px.png").read_bytes() == (out / "color_px.png").read_bytes()
+    assert not (tmp_path / "b2" / "opacity.npz").exists() and "opacity" not in json.loads(
+        (tmp_path / "b2" / "impostor.json").read_text())  # --opacity 0: the RDM's solid relief, as published
     proc = cli("impostor", grown, "--colors", "painted", "--out", tmp_path / "bad")
     assert_clean_failure(proc, tmp_path / "bad")
     assert "colors" in proc.stderr
@@ -101,6 +113,9 @@ def test_impostor_bad_inputs(tmp_path, grown):
     assert_clean_failure(proc, tmp_path / "x")
     proc = cli("impostor", grown, "--face", "8", "--out", tmp_path / "y")
     assert_clean_failure(proc, tmp_path / "y")
+    proc = cli("impostor", grown, "--opacity", "3", "--out", tmp_path / "y")
+    assert_clean_failure(proc, tmp_path / "y")
+    assert "opacity" in proc.stderr
     for bad in ("200,40", "40", "a,b"):
         proc = cli("impostor", grown, "--engine", bad, "--out", tmp_path / "z")
         assert_clean_failure(proc, tmp_path / "z")

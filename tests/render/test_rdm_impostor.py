@@ -118,3 +118,45 @@ def test_planar_colours_face_the_camera_from_every_side(gl, yaw):
     assert (img[left][:, 0] > img[left][:, 2]).all() and (img[right][:, 2] > img[right][:, 0]).all()
     with pytest.raises(InputError, match="planar"):
         render_rdm_impostor(rdm, cam, planar={"image": front[..., :3], "center_px": (0, 0), "pixels_per_metre": 1})
+
+
+def test_opacity_grid_hits_where_half_the_light_is_blocked(gl):
+    """With an OpacityGrid the ray hits where its optical depth reaches ln 2 (Beer-Lambert) and is discarded
+    where the tree lets more than half the light through: the same pixels and depths as a CPU march."""
+    import scipy.ndimage as ndi
+
+    from treeform.structures import OpacityGrid
+    from treeform.structures.opacity import HALF_COVERAGE
+
+    rng = np.random.default_rng(3)
+    sigma = ndi.gaussian_filter(rng.random((16, 16, 16)), 2.0)
+    sigma = np.clip(sigma - np.percentile(sigma, 50), 0, None) * 80.0  # porous: dense lumps and empty gaps
+    grid = OpacityGrid(sigma.astype(np.float32), np.array([-1.0, -1.0, -1.0]), 2.0 / 16)
+    rdm = RadialDistanceMap(np.zeros(3), np.full((6, 16, 16), 1.75, np.float32))  # around the whole cube
+    cam = Camera(56, 56, 30.0, (1.5, 2.0, 6.0), (0.0, 0.0, 0.0))
+    res = render_rdm_impostor(rdm, cam, opacity=grid, opacity_steps=256)
+    plain = render_rdm_impostor(rdm, cam)
+    h, w = cam.height, cam.width
+    vv, uu = np.mgrid[:h, :w]
+    eye = np.asarray(cam.position, float)
+    dirs = cam.unproject(uu.ravel() + 0.5, vv.ravel() + 0.5, np.full(h * w, 5.0)) - eye
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    tau = grid.optical_depth(np.repeat(eye[None], h * w, 0), dirs, steps=256).reshape(h, w)
+    clear = np.abs(tau - HALF_COVERAGE) > 0.05  # pixels whose ray is not on the edge of the threshold
+    meets = tau > 0
+    assert 0.2 < (tau >= HALF_COVERAGE)[meets].mean() < 0.8  # a porous tree: gaps seen through, lumps not
+    agree = ((tau >= HALF_COVERAGE) == res.mask)[clear].mean()
+    assert agree > 0.98, agree
+    assert res.mask.sum() < 0.9 * plain.mask.sum() and not (res.mask & ~plain.mask).any()  # inside the RDM's
+    # depth: where the CPU march's optical depth crosses ln 2 along a few of the hit rays
+    ys, xs = np.nonzero(res.mask & clear)
+    fwd = np.asarray(cam.axes()[2])
+    for k in np.linspace(0, len(ys) - 1, 12).astype(int):
+        d = dirs[ys[k] * w + xs[k]]
+        ts = np.linspace(0, 12, 2401)[1:]
+        dt = ts[1] - ts[0]
+        cum = np.cumsum(grid.sample(eye + d * (ts - dt / 2)[:, None]) * dt)
+        t_hit = ts[np.searchsorted(cum, HALF_COVERAGE)]
+        assert abs(t_hit * (d @ fwd) - res.depth[ys[k], xs[k]]) < 0.05
+    with pytest.raises(InputError, match="opacity"):
+        render_rdm_impostor(rdm, cam, opacity=np.zeros((4, 4, 4)))

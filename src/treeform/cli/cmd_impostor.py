@@ -23,6 +23,9 @@ def impostor_cmd(
     engine: Optional[str] = typer.Option(None, "--engine", help="Also write impostor/engine/: lod0.glb (full mesh), "
                                          "lod1.glb (billboard cloud), lod2.glb (impostor cards) and lods.json, "
                                          "switching at NEAR,FAR metres, e.g. 40,200."),
+    opacity: int = typer.Option(96, "--opacity", help="Voxels along the edge of opacity.npz, the leaves' and wood's "
+                                "extinction per voxel: the relief impostor sees through the crown's gaps as the mesh "
+                                "does from afar (0: none; the relief is then the RDM's solid envelope)."),
 ):
     """Synthesize the tree's colour cubemap from its front view (seamless over every cube edge) and its RDM."""
     from treeform.methods.envelope.impostor import IMPOSTOR_STAGES, make_impostor
@@ -38,8 +41,10 @@ def impostor_cmd(
         if len(switch) != 2:
             _fail(f"--engine: expected NEAR,FAR in metres, e.g. 40,200, got {engine!r}", 2)
     res = run_api(make_impostor, tree_dir, out=out, face=face, rdm_resolution=rdm_resolution, seed=seed,
-                  colors=colors, engine=switch, stages=IMPOSTOR_STAGES, inputs=[tree_dir])
+                  colors=colors, engine=switch, opacity_resolution=opacity, stages=IMPOSTOR_STAGES,
+                  inputs=[tree_dir])
     t = res.manifest["timings"]
     typer.echo(f"impostor of {tree_dir}: 6 colour faces of {face}² and an RDM of 6 x {rdm_resolution}² "
-               f"(mean radius {res.rdm.mean_radius():.2f} m) in {sum(t.values()):.1f} s -> "
+               f"(mean radius {res.rdm.mean_radius():.2f} m)"
+               f"{f', an opacity grid of {opacity}³' if res.opacity is not None else ''} in {sum(t.values()):.1f} s -> "
                f"{Path(next(iter(res.files.values()))).parent}")

@@ -14,6 +14,7 @@ from treeform.geometry.curves import bspline_skeleton
 from treeform.geometry.leaves import (CLUSTER_COVERAGE, leaf_cards, leaf_material, leaf_texture, opaque_cards,
                                       texture_coverage)
 from treeform.geometry.lod import LOD_PRESETS, foliage_budget, plan_lod, tree_mesh
+from treeform.geometry.opacity import opacity_grid
 from treeform.geometry.normal_maps import normal_map_from_height, texture_height
 from treeform.geometry.textures import FOLIAGE_KINDS, foliage_coverage, texture_sizes, tree_textures
 from treeform.geometry.tubes import MIN_RING_RADIUS, bark_material, bark_texture, branch_mesh, tube_triangle_count
@@ -33,6 +34,7 @@ __all__ = [
     "leaf_material",
     "leaf_texture",
     "normal_map_from_height",
+    "opacity_grid",
     "opaque_cards",
     "plan_lod",
     "texture_coverage",

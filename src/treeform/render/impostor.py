@@ -8,6 +8,14 @@ direction, lights it with the normal of the RDM's surface (central differences o
 other correctly. Fragments whose ray misses the crown are discarded: the silhouette from any
 direction is the RDM's.
 
+A crown is porous, and the RDM (the farthest surface in each direction) fills its gaps: from
+afar the mesh shows sky through the crown where the relief shows a solid envelope. Given the
+tree's :class:`~treeform.structures.OpacityGrid` (the leaves' and wood's extinction per voxel,
+:func:`treeform.geometry.opacity_grid`), the ray instead marches that grid accumulating optical
+depth (Beer-Lambert) and hits where half its light is blocked (depth ln 2), or is discarded
+where the tree lets more through; colour and normal come from the cubemaps along the hit's
+direction as before.
+
 :class:`ReliefPass` draws any number of instances of one tree in one draw call (the box is
 turned and scaled per instance; each fragment marches in the tree's own frame), as a pass of
 :meth:`treeform.render.Renderer.render_scene`; :func:`render_rdm_impostor` draws one.
@@ -26,7 +34,7 @@ from treeform.render.result import RenderResult
 from treeform.render.shaders import YAW_GLSL
 from treeform.structures.camera import Camera
 
-__all__ = ["ReliefPass", "relief_bounds", "render_rdm_impostor"]
+__all__ = ["ReliefPass", "relief_bounds", "relief_box", "render_rdm_impostor"]
 
 _VS = "#version 330\n" + YAW_GLSL + """
 uniform mat4 u_view;
@@ -71,6 +79,12 @@ uniform vec3 u_up;
 uniform vec2 u_front_px;    // the crown centre's pixel in the front view
 uniform vec2 u_front_size;  // the front view's size in pixels
 uniform float u_front_scale;  // its pixels per metre at the crown centre
+uniform sampler3D u_opacity;  // extinction coefficient (1/m) per voxel (OpacityGrid), when u_use_opacity is 1
+uniform int u_use_opacity;
+uniform vec3 u_olo;         // the opacity cube's lowest corner and edge (the tree's frame)
+uniform float u_oext;
+uniform float u_ovox;       // its voxel's edge
+uniform int u_osteps;
 in vec3 v_local;
 flat in vec4 v_inst;
 flat in float v_yaw;
@@ -80,6 +94,67 @@ layout(location = 1) out vec4 f_depth;
 float inside(vec3 p) {  // <= 0 inside the crown (p in the tree's frame)
     vec3 d = p - u_center;
     return length(d) - texture(u_rdm, d).r;
+}
+
+float rdm_march(vec3 eye, vec3 dir, float t0, float t1) {  // the first hit on the RDM's surface in [t0, t1], or -1
+    // empty-space skipping: the surface lies between the spheres of radius u_rmax and u_rmin about the
+    // centre, so a ray that misses the outer one is done, and one that meets the inner one has hit by then
+    vec3 oc = eye - u_center;
+    float bq = dot(oc, dir), cq = dot(oc, oc);
+    float outer = bq * bq - cq + u_rmax * u_rmax;
+    if (outer <= 0.0) return -1.0;
+    float so = sqrt(outer);
+    t0 = max(t0, -bq - so);
+    t1 = min(t1, -bq + so);
+    float inner = bq * bq - cq + u_rmin * u_rmin;
+    if (inner > 0.0) t1 = min(t1, max(-bq - sqrt(inner), t0) + 1e-3 * u_rmin);
+    if (t1 <= t0) return -1.0;
+    float dt = (t1 - t0) / float(u_steps);
+    float prev = t0;
+    float hit = -1.0;
+    for (int i = 0; i <= u_steps; i++) {  // linear search
+        float t = t0 + dt * float(i);
+        if (inside(eye + dir * t) <= 0.0) { hit = t; break; }
+        prev = t;
+    }
+    if (hit < 0.0) return -1.0;
+    float a = prev;
+    float b = hit;
+    for (int i = 0; i < u_refine; i++) {  // binary refinement between the last miss and the hit
+        float m = 0.5 * (a + b);
+        if (inside(eye + dir * m) <= 0.0) b = m; else a = m;
+    }
+    return b;
+}
+
+float opacity_march(vec3 eye, vec3 dir, vec3 inv) {  // where the ray has lost half its light, or -1
+    // through a porous crown: Beer-Lambert along the ray through the opacity cube (midpoint rule); the
+    // tree is hit where half the light is blocked (optical depth ln 2), between two samples by linear
+    // interpolation; a ray that keeps more than half its light sees through the tree
+    vec3 oa = (u_olo - eye) * inv, ob = (u_olo + vec3(u_oext) - eye) * inv;
+    vec3 omin = min(oa, ob), omax = max(oa, ob);
+    float s0 = max(max(max(omin.x, omin.y), omin.z), 0.0);
+    float s1 = min(min(omax.x, omax.y), omax.z);
+    // only inside the sphere that holds the tree (the RDM's largest radius, a voxel to spare for the
+    // grid's linear filter): the cube's corners are empty, and a ray that misses the sphere is done
+    vec3 oc = eye - u_center;
+    float bq = dot(oc, dir), cq = dot(oc, oc);
+    float rs = u_rmax + 1.75 * u_ovox;
+    float outer = bq * bq - cq + rs * rs;
+    if (outer <= 0.0) return -1.0;
+    float so = sqrt(outer);
+    s0 = max(s0, -bq - so);
+    s1 = min(s1, -bq + so);
+    if (s1 <= s0) return -1.0;
+    float ds = (s1 - s0) / float(u_osteps);
+    float tau = 0.0;
+    for (int i = 0; i < u_osteps; i++) {
+        float t = s0 + ds * (float(i) + 0.5);
+        float s = texture(u_opacity, (eye + dir * t - u_olo) / u_oext).r * ds;
+        if (tau + s >= 0.69314718) return s0 + ds * (float(i) + (0.69314718 - tau) / max(s, 1e-12));
+        tau += s;
+    }
+    return -1.0;
 }
 
 void main() {
@@ -92,31 +167,13 @@ void main() {
     vec3 tmin = min(ta, tb), tmax = max(ta, tb);
     float t0 = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
     float t1 = min(min(tmax.x, tmax.y), tmax.z);
-    // empty-space skipping: the surface lies between the spheres of radius u_rmax and u_rmin about the
-    // centre, so a ray that misses the outer one is done, and one that meets the inner one has hit by then
-    vec3 oc = eye - u_center;
-    float bq = dot(oc, dir), cq = dot(oc, oc);
-    float outer = bq * bq - cq + u_rmax * u_rmax;
-    if (outer <= 0.0) discard;
-    float so = sqrt(outer);
-    t0 = max(t0, -bq - so);
-    t1 = min(t1, -bq + so);
-    float inner = bq * bq - cq + u_rmin * u_rmin;
-    if (inner > 0.0) t1 = min(t1, max(-bq - sqrt(inner), t0) + 1e-3 * u_rmin);
-    if (t1 <= t0) discard;
-    float dt = (t1 - t0) / float(u_steps);
-    float prev = t0;
-    float hit = -1.0;
-    for (int i = 0; i <= u_steps; i++) {  // linear search
-        float t = t0 + dt * float(i);
-        if (inside(eye + dir * t) <= 0.0) { hit = t; break; }
-        prev = t;
-    }
-    if (hit < 0.0) discard;
-    float a = prev, b = hit;
-    for (int i = 0; i < u_refine; i++) {  // binary refinement between the last miss and the hit
-        float m = 0.5 * (a + b);
-        if (inside(eye + dir * m) <= 0.0) b = m; else a = m;
+    float b;
+    if (u_use_opacity == 1) {
+        b = opacity_march(eye, dir, inv);
+        if (b < 0.0) discard;
+    } else {
+        b = rdm_march(eye, dir, t0, t1);
+        if (b < 0.0) discard;
     }
     vec3 p = eye + dir * b;
     vec3 e = vec3(u_eps, 0.0, 0.0);
@@ -154,6 +211,16 @@ def relief_bounds(rdm) -> tuple:
     return lo - pad, hi + pad, float(max(radii.min(), 0.0)) * 0.999, float(radii.max()) * (1 + 1e-4) + 1e-6
 
 
+def relief_box(rdm, opacity=None) -> tuple:
+    """The box a relief impostor is drawn as: :func:`relief_bounds`' box, grown to hold the opacity
+    cube when there is one (the RDM's median can trim a leaf the grid keeps). ``(lo, hi)``, (3,) each."""
+    lo, hi, _, _ = relief_bounds(rdm)
+    if opacity is not None:
+        olo, ohi = opacity.bounds()
+        lo, hi = np.minimum(lo, olo), np.maximum(hi, ohi)
+    return lo, hi
+
+
 _BOX = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
 
@@ -185,7 +252,7 @@ class ReliefPass(GLResources):
     ----------
     rdm : RadialDistanceMap
         In the tree's own frame.
-    color, steps, refine, lighting, planar :
+    color, steps, refine, lighting, planar, opacity, opacity_steps :
         As :func:`render_rdm_impostor`.
     part_id : int
         Reported as the part index of the impostor's pixels (:attr:`RenderResult.part`).
@@ -194,13 +261,19 @@ class ReliefPass(GLResources):
     name = "relief"
 
     def __init__(self, rdm, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
-                 lighting=None, planar: dict | None = None, part_id: int = 0):
+                 lighting=None, planar: dict | None = None, part_id: int = 0, opacity=None,
+                 opacity_steps: int | None = None):
         import moderngl
 
-        from treeform.structures import RadialDistanceMap
+        from treeform.structures import OpacityGrid, RadialDistanceMap
 
         if not isinstance(rdm, RadialDistanceMap):
             raise InputError(f"rdm: expected a RadialDistanceMap, got {type(rdm).__name__}")
+        if opacity is not None and not isinstance(opacity, OpacityGrid):
+            raise InputError(f"opacity: expected an OpacityGrid or None, got {type(opacity).__name__}")
+        self.opacity = opacity
+        self.opacity_steps = 0 if opacity is None else check_int(
+            2 * opacity.resolution if opacity_steps is None else opacity_steps, "opacity_steps", 4, 4096)
         self.steps = check_int(steps, "steps", 4, 4096)
         self.refine = check_int(refine, "refine", 0, 32)
         if color is None:
@@ -224,7 +297,8 @@ class ReliefPass(GLResources):
         self.part_id = int(part_id)
         self.front = front
         self.instances = np.zeros((0, 6), np.float32)
-        self.lo, self.hi, self._rmin, self._rmax = relief_bounds(rdm)
+        _, _, self._rmin, self._rmax = relief_bounds(rdm)
+        self.lo, self.hi = relief_box(rdm, opacity)
         corners = np.array([[x, y, z] for x in (self.lo[0], self.hi[0]) for y in (self.lo[1], self.hi[1])
                             for z in (self.lo[2], self.hi[2])], np.float32)
         self.ctx = ctx = get_context()
@@ -244,9 +318,16 @@ class ReliefPass(GLResources):
             self.ftex = ctx.texture((fimg.shape[1], fimg.shape[0]), 4, data=fimg.tobytes())
             self.ftex.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.ftex.repeat_x = self.ftex.repeat_y = False
+            # (a 1x1x1 stand-in without an opacity grid, for the same reason)
+            sig = opacity.sigma if opacity is not None else np.zeros((1, 1, 1), np.float32)
+            # (half floats: 2 bytes a voxel, linearly filtered everywhere; an extinction needs 3 digits)
+            self.otex = ctx.texture3d(sig.shape[::-1], 1, data=np.ascontiguousarray(sig, np.float16).tobytes(),
+                                      dtype="f2")
+            self.otex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.otex.repeat_x = self.otex.repeat_y = self.otex.repeat_z = False
             self.vbo = ctx.buffer(corners.tobytes())
             self.ibo = ctx.buffer(_BOX.tobytes())
-            self._objs += [self.ftex, self.vbo, self.ibo]
+            self._objs += [self.ftex, self.otex, self.vbo, self.ibo]
         except moderngl.Error as exc:
             self.release()
             raise RenderError(f"OpenGL impostor set-up failed: {exc}") from None
@@ -280,9 +361,17 @@ class ReliefPass(GLResources):
             _set(prog, "u_rdm", 0)
             _set(prog, "u_color", 1)
             _set(prog, "u_front", 2)
+            _set(prog, "u_opacity", 3)
             self.rtex.use(0)
             self.ctex.use(1)
             self.ftex.use(2)
+            self.otex.use(3)
+            _set(prog, "u_use_opacity", int(self.opacity is not None))
+            if self.opacity is not None:
+                _set(prog, "u_olo", tuple(float(x) for x in self.opacity.origin))
+                _set(prog, "u_oext", float(self.opacity.extent))
+                _set(prog, "u_ovox", float(self.opacity.voxel))
+                _set(prog, "u_osteps", self.opacity_steps)
             _set(prog, "u_planar", int(self.front is not None))
             if self.front is not None:
                 right, up, _ = camera.axes()
@@ -301,7 +390,8 @@ class ReliefPass(GLResources):
 
 
 def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None, steps: int = 64, refine: int = 6,
-                        lighting=None, planar: dict | None = None, instances=None) -> RenderResult:
+                        lighting=None, planar: dict | None = None, instances=None, opacity=None,
+                        opacity_steps: int | None = None) -> RenderResult:
     """Draw a radial distance map as a relief-mapped impostor from ``camera``.
 
     Parameters
@@ -328,6 +418,14 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
         the RDM's either way.
     instances : array_like, shape (N, 6), optional
         Placements (:mod:`treeform.render.instances`); default one, where the RDM is.
+    opacity : OpacityGrid, optional
+        The tree's extinction per voxel (:func:`treeform.geometry.opacity_grid`, in the RDM's
+        frame): the ray then hits the tree where it has lost half its light (Beer-Lambert), so a
+        porous crown's gaps stay open and the silhouette is the mesh's as seen from afar, not
+        the RDM's; the colour and the normal still come from the cubemaps along the hit's
+        direction. Without it the hit is the RDM's surface (seed 001 §4.1 as published).
+    opacity_steps : int, optional
+        Samples of that march through the opacity cube (default twice its resolution).
 
     Returns
     -------
@@ -339,7 +437,8 @@ def render_rdm_impostor(rdm, camera: Camera, *, color: np.ndarray | None = None,
 
     if not isinstance(camera, Camera):
         raise InputError(f"camera: expected a treeform Camera, got {type(camera).__name__}")
-    relief = ReliefPass(rdm, color=color, steps=steps, refine=refine, lighting=lighting, planar=planar)
+    relief = ReliefPass(rdm, color=color, steps=steps, refine=refine, lighting=lighting, planar=planar,
+                        opacity=opacity, opacity_steps=opacity_steps)
     renderer = Renderer(camera, samples=1, background=(0.0, 0.0, 0.0, 0.0))
     try:
         relief.instances = [[0, 0, 0, 1, 0, 0]] if instances is None else instances

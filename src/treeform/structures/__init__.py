@@ -6,6 +6,7 @@ This folder imports numpy and :mod:`treeform._shared.errors` only (a test checks
 from treeform.structures.camera import Camera
 from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, Mesh, MeshPart
+from treeform.structures.opacity import OpacityGrid
 from treeform.structures.photo import Photo
 from treeform.structures.rbv import RadialBoundingVolume
 from treeform.structures.rdm import RadialDistanceMap
@@ -19,6 +20,7 @@ __all__ = [
     "Material",
     "Mesh",
     "MeshPart",
+    "OpacityGrid",
     "Photo",
     "RadialBoundingVolume",
     "RadialDistanceMap",

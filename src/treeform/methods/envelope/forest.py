@@ -149,6 +149,7 @@ class Species:
         wood = sum(p.n_vertices * 48 + p.n_triangles * 12 for p in imp.wood.parts)
         wood_tex = sum(p.material.texture.size for p in imp.wood.parts if p.material.texture is not None)
         out = {"rdm": int(imp.rdm.radii.size * 4), "color_cubemap": int(imp.color.size),
+               "opacity": int(imp.opacity.sigma.size * 2) if imp.opacity is not None else 0,
                "leaflet_textures": int(3 * leaf * 4 / 3), "billboard_points": int(imp.cloud_points.nbytes),
                "wood": int(wood + wood_tex * 4 / 3)}
         if card_size:
@@ -338,7 +339,8 @@ def render_forest(species_dir, *, out=None, config: ForestConfig | None = None,
             clouds.append(CloudPass(imp.rdm, imp.cloud_points, imp.cloud_size, imp.leaflets, color=imp.color,
                                     lighting=lighting, part_id=1000 + k))
             reliefs.append(ReliefPass(imp.rdm, color=imp.color, steps=cfg.relief_steps, refine=cfg.relief_refine,
-                                      lighting=lighting, part_id=2000 + k))
+                                      lighting=lighting, part_id=2000 + k, opacity=imp.opacity,
+                                      opacity_steps=cfg.relief_steps))
         with timer.stage("frames"):
             for i, cam in enumerate([cams[0], *cams]):  # the first frame twice: once untimed (shaders compile,
                 renderer.camera = cam                    # textures upload on first use), so times are steady-state

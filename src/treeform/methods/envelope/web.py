@@ -27,7 +27,7 @@ import numpy as np
 __all__ = ["forest_page_writers", "glsl_es"]
 
 _ES_HEADER = ("precision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
-              "precision highp samplerCube;\n")
+              "precision highp samplerCube;\nprecision highp sampler3D;\n")
 
 
 def glsl_es(source: str) -> str:
@@ -64,10 +64,12 @@ def _species_data(s, cards=None) -> dict:
 
     from treeform.io.gltf import GlbNode, write_glb, write_glb_scene
     from treeform.render.cloud import leaflet_textures
-    from treeform.render.impostor import relief_bounds
+    from treeform.render.impostor import relief_bounds, relief_box
 
     imp = s.impostor
-    lo, hi, rmin, rmax = relief_bounds(imp.rdm)
+    _, _, rmin, rmax = relief_bounds(imp.rdm)
+    lo, hi = relief_box(imp.rdm, imp.opacity)
+    og = imp.opacity
     rgba, shade, geo, luma = leaflet_textures(imp.leaflets)  # as the renderer's CloudPass packs them
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
@@ -78,6 +80,9 @@ def _species_data(s, cards=None) -> dict:
         "rdm": {"center": [float(x) for x in imp.rdm.center], "res": int(imp.rdm.resolution),
                 "radii": _b64(imp.rdm.radii.astype("<f4"))},
         "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},
+        # the opacity grid as half floats (a 3D texture WebGL 2 filters linearly without an extension)
+        **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin], "extent": float(og.extent),
+                        "sigma": _b64(og.sigma.astype("<f2"))}} if og is not None else {}),
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
         "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),

@@ -17,6 +17,17 @@
   }
   const floats = (b64) => new Float32Array(bytes(b64).buffer);
 
+  function volume(O) {  // the opacity grid: half floats, x fastest, linearly filtered, clamped to its edge
+    const n = O ? O.res : 1;
+    const t = new THREE.Data3DTexture(O ? new Uint16Array(bytes(O.sigma).buffer) : new Uint16Array(1), n, n, n);
+    t.format = THREE.RedFormat; t.type = THREE.HalfFloatType;
+    t.minFilter = t.magFilter = O ? THREE.LinearFilter : THREE.NearestFilter;
+    t.wrapS = t.wrapT = t.wrapR = THREE.ClampToEdgeWrapping;
+    t.generateMipmaps = false; t.unpackAlignment = 1; t.flipY = false;
+    t.needsUpdate = true;
+    return t;
+  }
+
   function cube(faces, res, format, type) {  // six DataTextures, OpenGL face order, rows as stored
     const tex = new THREE.CubeTexture(faces.map(function (f) {
       const t = new THREE.DataTexture(f, res, res, format, type);
@@ -84,6 +95,11 @@
         u_eps: { value: 0.5 * Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / res }, u_id: { value: 2001 + k },
         u_right: { value: new THREE.Vector3() }, u_up: { value: new THREE.Vector3() }, u_front_px: { value: new THREE.Vector2() },
         u_front_size: { value: new THREE.Vector2(1, 1) }, u_front_scale: { value: 1 },
+        // the porous crown (render/impostor.py): Beer-Lambert through the opacity grid when the species has one
+        u_opacity: { value: volume(S.opacity) }, u_use_opacity: { value: S.opacity ? 1 : 0 },
+        u_olo: { value: new THREE.Vector3().fromArray(S.opacity ? S.opacity.origin : [0, 0, 0]) },
+        u_oext: { value: S.opacity ? S.opacity.extent : 1 }, u_osteps: { value: D.relief_steps },
+        u_ovox: { value: S.opacity ? S.opacity.extent / S.opacity.res : 1 },
       }, lightUniforms()),
     }));
     const reliefMesh = new THREE.Mesh(box, relief);

@@ -1,0 +1,178 @@
+"""The opacity grid of a tree mesh: leaf and wood area per voxel as an extinction coefficient.
+
+Beer-Lambert in a canopy (Ross 1981; the turbid-medium model of radiative transfer in
+vegetation): a ray through a volume of randomly placed thin surfaces of one-sided area
+density ``a`` (m^2 per m^3) is blocked with the coefficient ``sigma = G a``, where ``G`` is
+the mean projected share of a surface element: 1/2 for thin cards of any orientation (the
+mean of ``|cos|``), 1/pi for the closed surface of solid wood seen from its side (an upright
+tube's width over its girth; a randomly turned convex body's would be 1/4, Cauchy). Each card's
+area is counted where its texture is opaque (its alpha passes the material's cutoff), so a leaf
+cluster's transparent margins block nothing.
+
+The relief impostor (:mod:`treeform.render.impostor`) uses the grid to see through a porous
+crown: the gaps between clusters that the radial distance map, the crown's outer surface,
+fills.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from treeform._shared.checks import check_int
+from treeform._shared.errors import InputError
+from treeform.structures.mesh import Mesh
+from treeform.structures.opacity import OpacityGrid
+
+__all__ = ["opacity_grid", "CARD_SHADOW", "SOLID_SHADOW"]
+
+CARD_SHADOW = 0.5
+"""Mean projected share of a thin two-sided card (leaves)."""
+SOLID_SHADOW = 1.0 / np.pi
+"""Projected share of a closed opaque surface, bark on a tube seen from its side (its width 2r over its
+girth 2 pi r): trunks and limbs stand more upright than a random body (1/4, Cauchy)."""
+_CARD_SAMPLES = 4
+"""Samples per card edge: its area is split among 4 x 4 points, each weighted by its texel's alpha."""
+
+
+def _card_samples(part, n: int):
+    """Points (Q * n * n, 3) on each quad of an alpha-tested part and their opaque area (m^2), or None."""
+    tex = part.material.texture
+    if tex is None or tex.ndim != 3 or tex.shape[2] != 4 or part.uvs is None or part.n_vertices % 4:
+        return None
+    tri = np.asarray(part.indices).reshape(-1, 3)
+    q = np.arange(0, part.n_vertices, 4)
+    if len(tri) != 2 * len(q) or not (np.array_equal(tri[0::2], np.c_[q, q + 1, q + 2])
+                                      and np.array_equal(tri[1::2], np.c_[q, q + 2, q + 3])):
+        return None
+    quads = np.asarray(part.positions, np.float64).reshape(-1, 4, 3)
+    uv = np.asarray(part.uvs, np.float64).reshape(-1, 4, 2)
+    s = (np.arange(n) + 0.5) / n
+    su, sv = (a.ravel() for a in np.meshgrid(s, s))
+    w = np.stack([(1 - su) * (1 - sv), su * (1 - sv), su * sv, (1 - su) * sv], 1)  # bilinear over corners 0..3
+    pts = np.einsum("sk,qkd->qsd", w, quads)
+    uvs = np.einsum("sk,qkd->qsd", w, uv)
+    h, wd = tex.shape[:2]
+    opaque = tex[..., 3] >= 255.0 * float(part.material.alpha_cutoff)
+    col = np.clip(np.floor(uvs[..., 0] * wd).astype(np.int64), 0, wd - 1)
+    row = np.clip(np.floor(uvs[..., 1] * h).astype(np.int64), 0, h - 1)
+    a, b, c, d = (quads[:, k] for k in range(4))
+    area = 0.5 * (np.linalg.norm(np.cross(b - a, c - a), axis=1) + np.linalg.norm(np.cross(c - a, d - a), axis=1))
+    return pts.reshape(-1, 3), (opaque[row, col] * (area / (n * n))[:, None]).ravel()
+
+
+def _triangle_samples(part, voxel: float):
+    """Points on every triangle of a part and the area each stands for: a triangle larger than a
+    quarter voxel's face is split into m^2 equal parts (m up to 16), each counted at its centroid."""
+    v = np.asarray(part.positions, np.float64)[np.asarray(part.indices).reshape(-1, 3)]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    m = np.clip(np.ceil(np.sqrt(area / (0.25 * voxel * voxel))), 1, 16).astype(np.int64)
+    pts, wts = [], []
+    for k in np.unique(m):
+        sel = m == k
+        # centroids of the k^2 sub-triangles of a triangle split k times along each edge
+        bary = []
+        for i in range(k):
+            for j in range(k - i):
+                bary.append(((i + 1 / 3) / k, (j + 1 / 3) / k))
+                if i + j < k - 1:
+                    bary.append(((i + 2 / 3) / k, (j + 2 / 3) / k))
+        bary = np.array(bary)
+        wgt = np.c_[1 - bary.sum(1), bary]  # (k^2, 3)
+        tri = v[sel]
+        pts.append(np.einsum("sk,tkd->tsd", wgt, tri).reshape(-1, 3))
+        wts.append(np.repeat(area[sel] / (k * k), len(bary)))
+    return np.concatenate(pts), np.concatenate(wts)
+
+
+def opacity_grid(mesh: Mesh, *, resolution: int = 64, pad: float = 0.02) -> OpacityGrid:
+    """The extinction coefficient of a tree mesh on a cube of ``resolution^3`` voxels.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The tree (``tree.glb``): alpha-tested quads (leaf cards) count their opaque texels'
+        area with :data:`CARD_SHADOW`; other double-sided parts are cards without holes;
+        single-sided parts are closed surfaces (:data:`SOLID_SHADOW`).
+    resolution : int
+        Voxels along the cube's edge (the cube holds the mesh's box with ``pad`` of its largest
+        edge to spare on each side).
+    pad : float
+
+    Returns
+    -------
+    OpacityGrid
+        Each sample's area is spread over the 8 voxels around it (trilinear weights), so a
+        linearly filtered read of the grid integrates to the area it holds (for solid parts, a
+        voxel's share ``f`` of shadow becomes the optical depth ``-ln(1 - f)`` of one opaque
+        element, kept in its own voxel). A solid is counted by its surface: a trunk many voxels
+        wide is two walls to a ray through it, and one much thinner than a voxel fades (a 20-m
+        oak's 10-cm trunk at 96 voxels shows in pieces).
+
+    Examples
+    --------
+    A 1 m x 1 m opaque card holds half its area as shadow, wherever it stands:
+
+    >>> from treeform.structures import Material, MeshPart
+    >>> pos = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    >>> part = MeshPart(pos, np.tile([0.0, 0.0, 1.0], (4, 1)), np.zeros((4, 2)), np.ones((4, 4)),
+    ...                 np.array([[0, 1, 2], [0, 2, 3]]), Material("leaf", double_sided=True))
+    >>> g = opacity_grid(Mesh([part]), resolution=8)
+    >>> round(float(g.sigma.sum()) * g.voxel ** 3, 3)
+    0.5
+    """
+    if not isinstance(mesh, Mesh):
+        raise InputError(f"mesh: expected a treeform Mesh, got {type(mesh).__name__}")
+    resolution = check_int(resolution, "resolution", 2, 512)
+    parts = [p for p in mesh.parts if p.n_vertices and len(p.indices)]
+    if not parts:
+        raise InputError("mesh: no triangles to make an opacity grid of")
+    pts = np.concatenate([np.asarray(p.positions, np.float64) for p in parts])
+    lo, hi = pts.min(0), pts.max(0)
+    ext = float(np.max(hi - lo))
+    ext = max(ext, 1e-6) * (1.0 + 2.0 * float(pad))
+    voxel = ext / resolution
+    origin = 0.5 * (lo + hi) - 0.5 * ext
+    thin, solid = [], []  # (points, shadow area): thin cards, closed opaque surfaces
+    for p in parts:
+        cards = _card_samples(p, _CARD_SAMPLES) if p.material.alpha_mode != "OPAQUE" else None
+        if cards is not None:
+            thin.append((cards[0], CARD_SHADOW * cards[1]))
+            continue
+        q, a = _triangle_samples(p, voxel)
+        (thin if p.material.double_sided else solid).append(
+            (q, (CARD_SHADOW if p.material.double_sided else SOLID_SHADOW) * a))
+    sigma = _splat(thin, origin, voxel, resolution)
+    if solid:
+        # a solid body is one opaque element, not a cloud of small independent ones: a voxel whose
+        # shadow share f it fills (f = sigma * voxel, the mean over directions) lets 1 - f of the light
+        # through, optical depth -ln(1 - f) across it, not f (a limb thinner than a voxel stays seen)
+        f = np.clip(_splat(solid, origin, voxel, resolution, nearest=True) * voxel, 0.0, 0.95)
+        sigma += -np.log1p(-f) / voxel
+    return OpacityGrid(sigma.astype(np.float32), origin, voxel)
+
+
+def _splat(samples, origin, voxel: float, resolution: int, *, nearest: bool = False) -> np.ndarray:
+    """Shadow area per volume (N, N, N) of ``(points, area)`` pairs, each sample spread over its 8 voxels
+    (or, ``nearest``, kept in its own)."""
+    if not samples:
+        return np.zeros((resolution,) * 3)
+    P = np.concatenate([q for q, _ in samples])
+    W = np.concatenate([a for _, a in samples])
+    if nearest:
+        idx = np.clip(np.floor((P - origin) / voxel).astype(np.int64), 0, resolution - 1)
+        flat = np.bincount((idx[:, 2] * resolution + idx[:, 1]) * resolution + idx[:, 0], weights=W,
+                           minlength=resolution ** 3)
+        return (flat / voxel ** 3).reshape(resolution, resolution, resolution)
+    g = (P - origin) / voxel - 0.5  # voxel-centre coordinates
+    i0 = np.floor(g).astype(np.int64)
+    f = g - i0
+    flat = np.zeros(resolution ** 3)
+    for dz in (0, 1):
+        for dy in (0, 1):
+            for dx in (0, 1):
+                idx = np.clip(i0 + (dx, dy, dz), 0, resolution - 1)
+                w = (np.where(dx, f[:, 0], 1 - f[:, 0]) * np.where(dy, f[:, 1], 1 - f[:, 1])
+                     * np.where(dz, f[:, 2], 1 - f[:, 2]))
+                flat += np.bincount((idx[:, 2] * resolution + idx[:, 1]) * resolution + idx[:, 0], weights=W * w,
+                                    minlength=resolution ** 3)
+    return (flat / voxel ** 3).reshape(resolution, resolution, resolution)

@@ -1,0 +1,122 @@
+"""OpacityGrid: how much a tree blocks the light per metre of a ray, on a regular grid of voxels.
+
+A crown is porous: the radial distance map (:mod:`treeform.structures.rdm`) keeps only its
+outer surface, so a relief impostor drawn from it is solid where the mesh shows sky through
+the crown. The grid keeps, per voxel, the extinction coefficient ``sigma`` (1/m) of the
+leaves and wood inside it (:func:`treeform.geometry.opacity.opacity_grid`); a ray blocks
+``1 - exp(-integral of sigma)`` of what lies behind (Beer-Lambert), and the relief impostor
+hits the tree where that reaches one half (:mod:`treeform.render.impostor`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from treeform._shared.errors import InputError
+from treeform.structures._npz import load_npz, save_npz
+
+HALF_COVERAGE = float(np.log(2.0))
+"""Optical depth at which a ray is half blocked: where the impostor's surface lies along it."""
+
+
+@dataclass
+class OpacityGrid:
+    """Extinction coefficient per voxel of an axis-aligned cube of ``N^3`` voxels.
+
+    Parameters
+    ----------
+    sigma : ndarray, shape (N, N, N), float32
+        Extinction coefficient in 1/m, indexed ``[z, y, x]`` (x fastest: a 3D texture's order);
+        voxel ``(k, j, i)`` spans ``origin + voxel * (i, j, k)`` to ``origin + voxel * (i + 1, j + 1, k + 1)``
+        and its value holds at its centre.
+    origin : ndarray, shape (3,)
+        The cube's lowest corner, metres.
+    voxel : float
+        Edge of a voxel, metres.
+
+    Examples
+    --------
+    >>> g = OpacityGrid(np.full((4, 4, 4), 2.0, np.float32), np.zeros(3), 0.25)
+    >>> round(float(g.optical_depth(np.array([[-1.0, 0.5, 0.5]]), np.array([[1.0, 0, 0]]))[0]), 2)
+    2.0
+    """
+
+    sigma: np.ndarray
+    origin: np.ndarray
+    voxel: float
+
+    def __post_init__(self):
+        self.sigma = np.ascontiguousarray(self.sigma, np.float32)
+        self.origin = np.asarray(self.origin, np.float64).reshape(3)
+        self.voxel = float(self.voxel)
+        self.validate()
+
+    @property
+    def resolution(self) -> int:
+        return self.sigma.shape[0]
+
+    @property
+    def extent(self) -> float:
+        """Edge of the whole cube, metres."""
+        return self.voxel * self.resolution
+
+    def validate(self) -> None:
+        s = self.sigma
+        if s.ndim != 3 or len(set(s.shape)) != 1 or s.shape[0] < 1:
+            raise InputError(f"OpacityGrid.sigma: expected (N, N, N), got {s.shape}")
+        if not np.all(np.isfinite(s)) or s.min() < 0:
+            raise InputError("OpacityGrid.sigma: must be finite and non-negative")
+        if not np.all(np.isfinite(self.origin)) or not (np.isfinite(self.voxel) and self.voxel > 0):
+            raise InputError("OpacityGrid: origin must be finite and voxel > 0")
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The cube's (min, max) corners."""
+        return self.origin.copy(), self.origin + self.extent
+
+    def sample(self, points: np.ndarray) -> np.ndarray:
+        """Trilinear ``sigma`` (N,) at points (N, 3), as a linearly filtered 3D texture clamped to its
+        edge reads it; 0 outside the cube."""
+        q = (np.asarray(points, np.float64).reshape(-1, 3) - self.origin) / self.voxel
+        n = self.resolution
+        inside = np.all((q >= 0) & (q <= n), axis=1)
+        p = q - 0.5
+        i0 = np.floor(p).astype(np.int64)
+        f = p - i0
+        out = np.zeros(len(p))
+        for dz in (0, 1):
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    idx = np.clip(i0 + (dx, dy, dz), 0, n - 1)
+                    w = (np.where(dx, f[:, 0], 1 - f[:, 0]) * np.where(dy, f[:, 1], 1 - f[:, 1])
+                         * np.where(dz, f[:, 2], 1 - f[:, 2]))
+                    out += w * self.sigma[idx[:, 2], idx[:, 1], idx[:, 0]]
+        return np.where(inside, out, 0.0)
+
+    def optical_depth(self, origins: np.ndarray, directions: np.ndarray, *, steps: int | None = None) -> np.ndarray:
+        """Integral of ``sigma`` (N,) along each ray (N, 3) + t (N, 3) through the cube (midpoint rule)."""
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+        lo, hi = self.bounds()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (lo - o) / d, (hi - o) / d
+        t0 = np.nanmax(np.minimum(ta, tb), axis=1).clip(min=0.0)
+        t1 = np.nanmin(np.maximum(ta, tb), axis=1)
+        steps = int(steps or 4 * self.resolution)
+        span = np.clip(t1 - t0, 0.0, None)
+        dt = span / steps
+        tau = np.zeros(len(o))
+        for k in range(steps):
+            t = t0 + dt * (k + 0.5)
+            tau += self.sample(o + d * t[:, None]) * dt
+        return tau
+
+    def save(self, path):
+        return save_npz(path, "OpacityGrid", sigma=self.sigma, origin=self.origin, voxel=np.float64(self.voxel))
+
+    @classmethod
+    def load(cls, path) -> "OpacityGrid":
+        d = load_npz(path, "OpacityGrid")
+        return cls(d["sigma"], d["origin"], float(d["voxel"]))
