@@ -14,8 +14,8 @@ the foot's column), and randomised as the segmenter's scenes are:
   taller than the frame (the height in pixels follows the distance: a foot lower in the
   frame is nearer, so larger); each tree after the first stands, with a chance of 35 %
   (``behind``), nearly behind another (a few pixels to a tenth of the frame aside,
-  ``behind_aside``, slightly farther), the case where two feet merge in a mask; seasons, bark tints and thinning of
-  :func:`~treeform.dataset.scenes._tree_look`;
+  ``behind_aside``, slightly farther), the case where two feet merge in a mask; seasons,
+  bark tints and thinning of :func:`~treeform.dataset.scenes._tree_look`;
 - **backgrounds**: :func:`~treeform.dataset.scenes.group_scene`'s lawn under a sky, the
   procedural skies, lawns, roads and buildings, or a blurred real photo
   (:func:`~treeform.dataset.scenes.photo_background`); clutter (cars, people, lamp posts:
@@ -150,7 +150,8 @@ def feet_scene(sprites, rng, *, size: tuple = (384, 288), photos=(), empty: floa
     if rng.random() < 0.2 and not bush_front:
         _bushes(img, other, rng, horizon)
     n = 0 if rng.random() < empty else int(rng.integers(1, max_trees + 1))
-    layout = sorted(_layout(n, rng, W, H, horizon, behind, behind_aside), key=lambda t: t[1])  # far (high in the frame) to near
+    # far (high in the frame) to near
+    layout = sorted(_layout(n, rng, W, H, horizon, behind, behind_aside), key=lambda t: t[1])
     lab = np.zeros((H, W), np.uint8)
     feet = np.zeros((len(layout), 2))
     for k, (u, v, hpx) in enumerate(layout):

@@ -17,7 +17,7 @@ from treeform.structures.foliage import Foliage
 from treeform.structures.mesh import Material, MeshPart
 
 __all__ = ["CLUSTER_COVERAGE", "TEXTURE_KINDS", "card_frames", "leaf_cards", "leaf_material", "leaf_texture",
-           "opaque_cards", "texture_coverage"]
+           "card_quads", "opaque_cards", "texture_coverage"]
 
 TEXTURE_KINDS = ("cluster", "leaf", "needles", "scales")
 """Kinds of :func:`leaf_texture`: a broadleaf cluster, one leaf, a needle cluster, a scale spray."""
@@ -35,6 +35,25 @@ def texture_coverage(texture: np.ndarray) -> float:
     if texture.ndim != 3 or texture.shape[2] != 4:
         raise InputError(f"texture: expected an (H, W, 4) array, got shape {texture.shape}")
     return float(np.mean(texture[..., 3] > 127))
+
+
+def card_quads(part: MeshPart) -> tuple[np.ndarray, np.ndarray] | None:
+    """An alpha-textured part's quads: ``(positions (Q, 4, 3), uvs (Q, 4, 2))`` float64, or None.
+
+    The part must hold quads of 4 consecutive vertices drawn as triangles (0, 1, 2) and
+    (0, 2, 3), UVs and an (H, W, 4) texture, as :func:`leaf_cards` and the photo-leaf atlas
+    write them; None for anything else.
+    """
+    tex, uv = part.material.texture, part.uvs
+    n_v = part.n_vertices
+    if tex is None or np.ndim(tex) != 3 or np.shape(tex)[2] != 4 or uv is None or n_v == 0 or n_v % 4:
+        return None
+    n = n_v // 4
+    idx = np.asarray(part.indices, np.int64).reshape(-1)
+    if idx.size != 6 * n or not np.array_equal(idx.reshape(n, 6) - 4 * np.arange(n)[:, None],
+                                               np.broadcast_to([0, 1, 2, 0, 2, 3], (n, 6))):
+        return None
+    return np.asarray(part.positions, np.float64).reshape(n, 4, 3), np.asarray(uv, np.float64).reshape(n, 4, 2)
 
 
 def opaque_cards(part: MeshPart) -> np.ndarray | None:
@@ -72,17 +91,11 @@ def opaque_cards(part: MeshPart) -> np.ndarray | None:
     >>> opaque_cards(part)[:, 0].tolist()
     [0.0, 1.0, 1.0, 0.0]
     """
-    tex, uv = part.material.texture, part.uvs
-    n_v = part.n_vertices
-    if tex is None or np.ndim(tex) != 3 or np.shape(tex)[2] != 4 or uv is None or n_v == 0 or n_v % 4:
+    quads = card_quads(part)
+    if quads is None:
         return None
-    n = n_v // 4
-    idx = np.asarray(part.indices, np.int64).reshape(-1)
-    if idx.size != 6 * n or not np.array_equal(idx.reshape(n, 6) - 4 * np.arange(n)[:, None],
-                                               np.broadcast_to([0, 1, 2, 0, 2, 3], (n, 6))):
-        return None
-    uv = np.asarray(uv, np.float64).reshape(n, 4, 2)
-    P = np.asarray(part.positions, np.float64).reshape(n, 4, 3)
+    P, uv = quads
+    tex = part.material.texture
     lo, hi = uv.min(1), uv.max(1)
     span = hi - lo
     if np.any(span <= 0):

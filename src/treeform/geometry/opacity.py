@@ -20,8 +20,9 @@ import numpy as np
 
 from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
+from treeform.geometry.leaves import card_quads
 from treeform.structures.mesh import Mesh
-from treeform.structures.opacity import OpacityGrid
+from treeform.structures.opacity import OpacityGrid, trilinear_corners
 
 __all__ = ["opacity_grid", "CARD_SHADOW", "SOLID_SHADOW"]
 
@@ -36,16 +37,11 @@ _CARD_SAMPLES = 4
 
 def _card_samples(part, n: int):
     """Points (Q * n * n, 3) on each quad of an alpha-tested part and their opaque area (m^2), or None."""
+    cards = card_quads(part)
+    if cards is None:
+        return None
+    quads, uv = cards
     tex = part.material.texture
-    if tex is None or tex.ndim != 3 or tex.shape[2] != 4 or part.uvs is None or part.n_vertices % 4:
-        return None
-    tri = np.asarray(part.indices).reshape(-1, 3)
-    q = np.arange(0, part.n_vertices, 4)
-    if len(tri) != 2 * len(q) or not (np.array_equal(tri[0::2], np.c_[q, q + 1, q + 2])
-                                      and np.array_equal(tri[1::2], np.c_[q, q + 2, q + 3])):
-        return None
-    quads = np.asarray(part.positions, np.float64).reshape(-1, 4, 3)
-    uv = np.asarray(part.uvs, np.float64).reshape(-1, 4, 2)
     s = (np.arange(n) + 0.5) / n
     su, sv = (a.ravel() for a in np.meshgrid(s, s))
     w = np.stack([(1 - su) * (1 - sv), su * (1 - sv), su * sv, (1 - su) * sv], 1)  # bilinear over corners 0..3
@@ -163,16 +159,6 @@ def _splat(samples, origin, voxel: float, resolution: int, *, nearest: bool = Fa
         flat = np.bincount((idx[:, 2] * resolution + idx[:, 1]) * resolution + idx[:, 0], weights=W,
                            minlength=resolution ** 3)
         return (flat / voxel ** 3).reshape(resolution, resolution, resolution)
-    g = (P - origin) / voxel - 0.5  # voxel-centre coordinates
-    i0 = np.floor(g).astype(np.int64)
-    f = g - i0
-    flat = np.zeros(resolution ** 3)
-    for dz in (0, 1):
-        for dy in (0, 1):
-            for dx in (0, 1):
-                idx = np.clip(i0 + (dx, dy, dz), 0, resolution - 1)
-                w = (np.where(dx, f[:, 0], 1 - f[:, 0]) * np.where(dy, f[:, 1], 1 - f[:, 1])
-                     * np.where(dz, f[:, 2], 1 - f[:, 2]))
-                flat += np.bincount((idx[:, 2] * resolution + idx[:, 1]) * resolution + idx[:, 0], weights=W * w,
-                                    minlength=resolution ** 3)
+    cells, weights = trilinear_corners((P - origin) / voxel, resolution)
+    flat = np.bincount(cells.ravel(), weights=(weights * W).ravel(), minlength=resolution ** 3)
     return (flat / voxel ** 3).reshape(resolution, resolution, resolution)

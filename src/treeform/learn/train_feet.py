@@ -52,7 +52,8 @@ class FeetTrainConfig:
     render_fraction: float = 0.5
     """Share of the trees drawn from the synthetic renders (when ``renders`` are given)."""
     behind: float = 0.35
-    """Chance that each tree after a scene's first stands nearly behind another (:func:`~treeform.dataset.feet_scenes.feet_scene`)."""
+    """Chance that each tree after a scene's first stands nearly behind another
+    (:func:`~treeform.dataset.feet_scenes.feet_scene`)."""
     behind_aside: float = 0.1
     """How far aside of it, at most, as a share of the scene's width."""
     init: str = ""

@@ -21,6 +21,27 @@ HALF_COVERAGE = float(np.log(2.0))
 """Optical depth at which a ray is half blocked: where the impostor's surface lies along it."""
 
 
+def trilinear_corners(q: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The 8 voxels around each point of a grid of ``n^3`` and their trilinear weights.
+
+    ``q`` (N, 3) are positions in voxel units (0 at the grid's corner, voxel centres at
+    ``i + 0.5``). Returns the flat ``[z, y, x]`` indices (8, N), clamped to the grid's edge as a
+    linearly filtered texture clamps them, and the weights (8, N), summing to 1 for each point.
+    """
+    p = np.asarray(q, np.float64).reshape(-1, 3) - 0.5
+    i0 = np.floor(p).astype(np.int64)
+    f = p - i0
+    cells, weights = [], []
+    for dz in (0, 1):
+        for dy in (0, 1):
+            for dx in (0, 1):
+                idx = np.clip(i0 + (dx, dy, dz), 0, n - 1)
+                cells.append((idx[:, 2] * n + idx[:, 1]) * n + idx[:, 0])
+                weights.append(np.where(dx, f[:, 0], 1 - f[:, 0]) * np.where(dy, f[:, 1], 1 - f[:, 1])
+                               * np.where(dz, f[:, 2], 1 - f[:, 2]))
+    return np.stack(cells), np.stack(weights)
+
+
 @dataclass
 class OpacityGrid:
     """Extinction coefficient per voxel of an axis-aligned cube of ``N^3`` voxels.
@@ -80,19 +101,9 @@ class OpacityGrid:
         edge reads it; 0 outside the cube."""
         q = (np.asarray(points, np.float64).reshape(-1, 3) - self.origin) / self.voxel
         n = self.resolution
-        inside = np.all((q >= 0) & (q <= n), axis=1)
-        p = q - 0.5
-        i0 = np.floor(p).astype(np.int64)
-        f = p - i0
-        out = np.zeros(len(p))
-        for dz in (0, 1):
-            for dy in (0, 1):
-                for dx in (0, 1):
-                    idx = np.clip(i0 + (dx, dy, dz), 0, n - 1)
-                    w = (np.where(dx, f[:, 0], 1 - f[:, 0]) * np.where(dy, f[:, 1], 1 - f[:, 1])
-                         * np.where(dz, f[:, 2], 1 - f[:, 2]))
-                    out += w * self.sigma[idx[:, 2], idx[:, 1], idx[:, 0]]
-        return np.where(inside, out, 0.0)
+        cells, weights = trilinear_corners(q, n)
+        out = (self.sigma.reshape(-1)[cells] * weights).sum(0)
+        return np.where(np.all((q >= 0) & (q <= n), axis=1), out, 0.0)
 
     def optical_depth(self, origins: np.ndarray, directions: np.ndarray, *, steps: int | None = None) -> np.ndarray:
         """Integral of ``sigma`` (N,) along each ray (N, 3) + t (N, 3) through the cube (midpoint rule)."""

@@ -119,7 +119,7 @@ def impostor_cards(imp, *, size: int = 256, lighting=None, unlit: bool = False):
         az = math.radians(60.0 * k)
         d = np.array([math.sin(az), 0.0, math.cos(az)])
         cam = Camera(size, size, fov, tuple(mid + d * dist), tuple(mid), near=dist - 2 * half, far=dist + 2 * half)
-        res = render_rdm_impostor(rdm, cam, color=imp.color, lighting=lighting, opacity=getattr(imp, "opacity", None))
+        res = render_rdm_impostor(rdm, cam, color=imp.color, lighting=lighting, opacity=imp.opacity)
         row, col = divmod(k, 3)
         atlas[row * size:(row + 1) * size, col * size:(col + 1) * size] = res.color
         right, up, _ = cam.axes()

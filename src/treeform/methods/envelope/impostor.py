@@ -31,7 +31,8 @@ from treeform._shared.checks import check_int
 from treeform._shared.errors import InputError
 from treeform._shared.timing import ProgressCallback, StageTimer
 
-__all__ = ["IMPOSTOR_STAGES", "IMPOSTOR_COLORS", "FACE_NAMES", "OPACITY_RESOLUTION", "Impostor", "make_impostor", "read_impostor"]
+__all__ = ["IMPOSTOR_STAGES", "IMPOSTOR_COLORS", "FACE_NAMES", "OPACITY_RESOLUTION", "Impostor", "make_impostor",
+           "read_impostor"]
 
 IMPOSTOR_STAGES = ("load", "render", "rdm", "color", "leaflets", "cloud", "export")
 CLOUD_COVER = 3.0

@@ -81,8 +81,8 @@ def _species_data(s, cards=None) -> dict:
                 "radii": _b64(imp.rdm.radii.astype("<f4"))},
         "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},
         # the opacity grid as half floats (a 3D texture WebGL 2 filters linearly without an extension)
-        **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin], "extent": float(og.extent),
-                        "sigma": _b64(og.sigma.astype("<f2"))}} if og is not None else {}),
+        **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin],
+                        "extent": float(og.extent), "sigma": _b64(og.sigma.astype("<f2"))}} if og is not None else {}),
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
         "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),
