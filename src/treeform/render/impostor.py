@@ -14,7 +14,9 @@ tree's :class:`~treeform.structures.OpacityGrid` (the leaves' and wood's extinct
 :func:`treeform.geometry.opacity_grid`), the ray instead marches that grid accumulating optical
 depth (Beer-Lambert) and hits where half its light is blocked (depth ln 2), or is discarded
 where the tree lets more through; colour and normal come from the cubemaps along the hit's
-direction as before.
+direction as before. The grid's capsules (the trunk and thickest limbs, which a grid of its voxel
+would fade) are hit exactly where they lie in front of that point, lit by their own normal and
+coloured with the bark's albedo.
 
 :class:`ReliefPass` draws any number of instances of one tree in one draw call (the box is
 turned and scaled per instance; each fragment marches in the tree's own frame), as a pass of
@@ -33,8 +35,9 @@ from treeform.render.instances import check_instances
 from treeform.render.result import RenderResult
 from treeform.render.shaders import YAW_GLSL
 from treeform.structures.camera import Camera
+from treeform.structures.opacity import MAX_WOOD
 
-__all__ = ["ReliefPass", "relief_bounds", "relief_box", "render_rdm_impostor"]
+__all__ = ["ReliefPass", "relief_bounds", "relief_box", "render_rdm_impostor", "wood_uniforms"]
 
 _VS = "#version 330\n" + YAW_GLSL + """
 uniform mat4 u_view;
@@ -53,7 +56,7 @@ void main() {
 }
 """
 
-_FS = "#version 330\n" + YAW_GLSL + """
+_FS = "#version 330\n" + f"#define MAX_WOOD {MAX_WOOD}\n" + YAW_GLSL + """
 uniform samplerCube u_rdm;
 uniform samplerCube u_color;
 uniform mat4 u_view;
@@ -85,6 +88,10 @@ uniform vec3 u_olo;         // the opacity cube's lowest corner and edge (the tr
 uniform float u_oext;
 uniform float u_ovox;       // its voxel's edge
 uniform int u_osteps;
+uniform int u_nwood;        // the opacity grid's capsules (OpacityGrid.wood): a (xyz, radius), b (xyz)
+uniform vec4 u_wa[MAX_WOOD];
+uniform vec4 u_wb[MAX_WOOD];
+uniform vec3 u_bark;        // their albedo
 in vec3 v_local;
 flat in vec4 v_inst;
 flat in float v_yaw;
@@ -157,6 +164,47 @@ float opacity_march(vec3 eye, vec3 dir, vec3 inv) {  // where the ray has lost h
     return -1.0;
 }
 
+float capsule_hit(vec3 ro, vec3 rd, vec3 a, vec3 b, float r) {  // where the ray enters the capsule, or -1
+    // (structures/opacity.py capsule_hit): the side of the cylinder about a-b, then the sphere at the
+    // end that hit went past; solved from the ray's point nearest the capsule's middle (a far eye's
+    // large terms would cancel in single precision)
+    float tm = dot(0.5 * (a + b) - ro, rd);
+    vec3 ba = b - a, oa = ro + rd * tm - a;
+    float L2 = dot(ba, ba), bd = dot(ba, rd), bo = dot(ba, oa);
+    float qa = L2 - bd * bd, qb = L2 * dot(rd, oa) - bo * bd, qc = L2 * dot(oa, oa) - bo * bo - r * r * L2;
+    float h = qb * qb - qa * qc;
+    if (h < 0.0) return -1.0;
+    float y = -bd;  // (along the axis: the end the ray comes to first)
+    if (qa > 1e-9 * L2) {
+        float t = (-qb - sqrt(h)) / qa;
+        y = bo + t * bd;
+        if (y > 0.0 && y < L2) return tm + t > 0.0 ? tm + t : -1.0;
+    }
+    vec3 oc = oa - (y <= 0.0 ? vec3(0.0) : ba);
+    float sb = dot(rd, oc), sc = dot(oc, oc) - r * r;
+    float sh = sb * sb - sc;
+    if (sh < 0.0) return -1.0;
+    float ts = tm - sb - sqrt(sh);
+    return ts > 0.0 ? ts : -1.0;
+}
+
+float wood_hit(vec3 eye, vec3 dir, out vec3 n) {  // the first capsule along the ray, or -1; n its normal
+    float best = -1.0;
+    int k = -1;
+    for (int i = 0; i < MAX_WOOD; i++) {
+        if (i >= u_nwood) break;
+        float t = capsule_hit(eye, dir, u_wa[i].xyz, u_wb[i].xyz, u_wa[i].w);
+        if (t > 0.0 && (best < 0.0 || t < best)) { best = t; k = i; }
+    }
+    n = vec3(0.0, 1.0, 0.0);
+    if (k >= 0) {
+        vec3 a = u_wa[k].xyz, ba = u_wb[k].xyz - a, p = eye + dir * best;
+        float f = clamp(dot(p - a, ba) / max(dot(ba, ba), 1e-12), 0.0, 1.0);
+        n = normalize(p - (a + f * ba) + 1e-9);
+    }
+    return best;
+}
+
 void main() {
     // the ray in the tree's own frame (turned back, unscaled): the march is the same for every instance
     vec3 eye = yaw_rotate((u_eye - v_inst.xyz) / v_inst.w, -v_yaw);
@@ -168,8 +216,12 @@ void main() {
     float t0 = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
     float t1 = min(min(tmax.x, tmax.y), tmax.z);
     float b;
+    vec3 wn;
+    float tw = -1.0;
     if (u_use_opacity == 1) {
         b = opacity_march(eye, dir, inv);
+        tw = wood_hit(eye, dir, wn);
+        if (tw > 0.0 && (b < 0.0 || tw < b)) b = tw; else tw = -1.0;
         if (b < 0.0) discard;
     } else {
         b = rdm_march(eye, dir, t0, t1);
@@ -180,7 +232,10 @@ void main() {
     vec3 n = normalize(vec3(inside(p + e.xyy) - inside(p - e.xyy), inside(p + e.yxy) - inside(p - e.yxy),
                             inside(p + e.yyx) - inside(p - e.yyx)) + 1e-9);
     vec3 albedo = texture(u_color, p - u_center).rgb;
-    if (u_planar == 1) {  // seed 001 §4.1, second option: the same billboard texture from every direction
+    if (tw > 0.0) {  // the trunk or a limb
+        n = wn;
+        albedo = u_bark;
+    } else if (u_planar == 1) {  // seed 001 §4.1, second option: the same billboard texture from every direction
         vec3 q = p - u_center;
         vec2 px = u_front_px + u_front_scale * vec2(dot(q, yaw_rotate(u_right, -v_yaw)),
                                                     -dot(q, yaw_rotate(u_up, -v_yaw)));
@@ -196,6 +251,16 @@ void main() {
     f_depth = vec4(-view.z, u_id, 0.0, 1.0);
 }
 """
+
+def wood_uniforms(opacity) -> tuple[np.ndarray, np.ndarray]:
+    """The grid's capsules as the shader's two ``vec4[MAX_WOOD]`` arrays (float32, unused rows zero):
+    ``(a, radius)`` and ``(b, 0)``."""
+    wa = np.zeros((MAX_WOOD, 4), np.float32)
+    wb = np.zeros((MAX_WOOD, 4), np.float32)
+    w = opacity.wood
+    wa[:len(w), :3], wa[:len(w), 3], wb[:len(w), :3] = w[:, :3], w[:, 6], w[:, 3:6]
+    return wa, wb
+
 
 def relief_bounds(rdm) -> tuple:
     """What the relief march of ``rdm`` is bounded by: ``(lo, hi, rmin, rmax)``.
@@ -372,6 +437,11 @@ class ReliefPass(GLResources):
                 _set(prog, "u_oext", float(self.opacity.extent))
                 _set(prog, "u_ovox", float(self.opacity.voxel))
                 _set(prog, "u_osteps", self.opacity_steps)
+                _set(prog, "u_nwood", len(self.opacity.wood))
+                _set(prog, "u_bark", tuple(float(x) for x in self.opacity.bark))
+                wa, wb = wood_uniforms(self.opacity)
+                _set(prog, "u_wa", wa.tobytes())
+                _set(prog, "u_wb", wb.tobytes())
             _set(prog, "u_planar", int(self.front is not None))
             if self.front is not None:
                 right, up, _ = camera.axes()

@@ -6,6 +6,10 @@ the crown. The grid keeps, per voxel, the extinction coefficient ``sigma`` (1/m)
 leaves and wood inside it (:func:`treeform.geometry.opacity.opacity_grid`); a ray blocks
 ``1 - exp(-integral of sigma)`` of what lies behind (Beer-Lambert), and the relief impostor
 hits the tree where that reaches one half (:mod:`treeform.render.impostor`).
+
+Wood thinner than a voxel would fade in the grid (its share of a voxel blocks less than half a
+ray through it), so the trunk and the limbs that show at a distance are kept beside it as
+capsules (:attr:`OpacityGrid.wood`): opaque, hit exactly, drawn in the bark's colour.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform.structures._npz import load_npz, save_npz
 
+MAX_WOOD = 32
+"""Most capsules an :class:`OpacityGrid` holds (the shader's fixed uniform arrays)."""
 HALF_COVERAGE = float(np.log(2.0))
 """Optical depth at which a ray is half blocked: where the impostor's surface lies along it."""
 
@@ -56,6 +62,12 @@ class OpacityGrid:
         The cube's lowest corner, metres.
     voxel : float
         Edge of a voxel, metres.
+    wood : ndarray, shape (K, 7), float32, optional
+        Opaque capsules beside the grid, ``(ax, ay, az, bx, by, bz, r)`` in metres (segment ``a``-``b``
+        swept by a sphere of radius ``r``), at most :data:`MAX_WOOD`: the trunk and the limbs the grid
+        would fade (:func:`treeform.geometry.opacity.wood_capsules`). Their area is not in ``sigma``.
+    bark : ndarray, shape (3,), optional
+        The capsules' albedo, RGB in [0, 1].
 
     Examples
     --------
@@ -67,11 +79,15 @@ class OpacityGrid:
     sigma: np.ndarray
     origin: np.ndarray
     voxel: float
+    wood: np.ndarray | None = None
+    bark: np.ndarray | None = None
 
     def __post_init__(self):
         self.sigma = np.ascontiguousarray(self.sigma, np.float32)
         self.origin = np.asarray(self.origin, np.float64).reshape(3)
         self.voxel = float(self.voxel)
+        self.wood = np.zeros((0, 7), np.float32) if self.wood is None else np.ascontiguousarray(self.wood, np.float32)
+        self.bark = np.array([0.35, 0.28, 0.22]) if self.bark is None else np.asarray(self.bark, np.float64).reshape(-1)
         self.validate()
 
     @property
@@ -91,6 +107,13 @@ class OpacityGrid:
             raise InputError("OpacityGrid.sigma: must be finite and non-negative")
         if not np.all(np.isfinite(self.origin)) or not (np.isfinite(self.voxel) and self.voxel > 0):
             raise InputError("OpacityGrid: origin must be finite and voxel > 0")
+        w = self.wood
+        if w.ndim != 2 or w.shape[1] != 7 or len(w) > MAX_WOOD:
+            raise InputError(f"OpacityGrid.wood: expected (K, 7) capsules, K <= {MAX_WOOD}, got {w.shape}")
+        if not np.all(np.isfinite(w)) or (len(w) and w[:, 6].min() <= 0):
+            raise InputError("OpacityGrid.wood: capsules must be finite with a radius > 0")
+        if self.bark.shape != (3,) or not np.all((self.bark >= 0) & (self.bark <= 1)):
+            raise InputError(f"OpacityGrid.bark: expected an RGB albedo in [0, 1], got {self.bark}")
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The cube's (min, max) corners."""
@@ -124,10 +147,66 @@ class OpacityGrid:
             tau += self.sample(o + d * t[:, None]) * dt
         return tau
 
+    def wood_hit(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Distance (N,) along each ray to its first capsule of :attr:`wood`, ``inf`` where it meets none
+        (the shader's test, for checks on the CPU)."""
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+        best = np.full(len(o), np.inf)
+        for ax, ay, az, bx, by, bz, r in self.wood.astype(np.float64):
+            best = np.minimum(best, capsule_hit(o, d, np.array([ax, ay, az]), np.array([bx, by, bz]), r))
+        return best
+
     def save(self, path):
-        return save_npz(path, "OpacityGrid", sigma=self.sigma, origin=self.origin, voxel=np.float64(self.voxel))
+        return save_npz(path, "OpacityGrid", sigma=self.sigma, origin=self.origin, voxel=np.float64(self.voxel),
+                        wood=self.wood, bark=self.bark)
 
     @classmethod
     def load(cls, path) -> "OpacityGrid":
         d = load_npz(path, "OpacityGrid")
-        return cls(d["sigma"], d["origin"], float(d["voxel"]))
+        return cls(d["sigma"], d["origin"], float(d["voxel"]), d.get("wood"), d.get("bark"))
+
+
+def capsule_hit(o: np.ndarray, d: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
+    """Distance (N,) along rays ``o + t d`` (unit ``d``, both (N, 3)) to where they enter the capsule
+    ``a``-``b`` of radius ``r``; ``inf`` for a ray that misses it or starts inside it.
+
+    The cylinder's side first (a quadratic in ``t`` with the part along the axis removed), then,
+    where that hit falls beyond an end, the sphere at that end.
+
+    Examples
+    --------
+    >>> t = capsule_hit(np.array([[0.0, 0.5, -5.0]]), np.array([[0.0, 0.0, 1.0]]), np.zeros(3),
+    ...                 np.array([0.0, 1.0, 0.0]), 0.1)
+    >>> round(float(t[0]), 6)
+    4.9
+    """
+    tm = np.einsum("ij,ij->i", 0.5 * (a + b) - o, d)
+    ba = b - a
+    L2 = float(ba @ ba)
+    oa = o + d * tm[:, None] - a  # from the ray's point nearest the middle: no cancellation for a far eye
+    bd = d @ ba
+    bo = oa @ ba
+    # |(oa + t d) x ba|^2 = r^2 |ba|^2: the side of the infinite cylinder
+    qa = L2 - bd * bd
+    qb = L2 * np.einsum("ij,ij->i", d, oa) - bo * bd
+    qc = L2 * np.einsum("ij,ij->i", oa, oa) - bo * bo - r * r * L2
+    h = qb * qb - qa * qc
+    out = np.full(len(o), np.inf)
+    slanted = qa > 1e-9 * L2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(slanted, (-qb - np.sqrt(np.maximum(h, 0.0))) / np.where(slanted, qa, 1.0), 0.0)
+    y = np.where(slanted, bo + t * bd, -bd)  # (along the axis: the end the ray comes to first)
+    side = (h >= 0) & slanted & (y > 0) & (y < L2) & (tm + t > 0)
+    out[side] = (tm + t)[side]
+    # the end caps: the sphere at the end the side's hit went past
+    rest = (h >= 0) & ~((h >= 0) & slanted & (y > 0) & (y < L2))
+    oc = oa - np.where((y <= 0)[:, None], 0.0, ba)
+    sb = np.einsum("ij,ij->i", d, oc)
+    sc = np.einsum("ij,ij->i", oc, oc) - r * r
+    sh = sb * sb - sc
+    ts = tm - sb - np.sqrt(np.maximum(sh, 0.0))
+    cap = rest & (sh >= 0) & (ts > 0)
+    out[cap] = ts[cap]
+    return out

@@ -149,7 +149,7 @@ class Species:
         wood = sum(p.n_vertices * 48 + p.n_triangles * 12 for p in imp.wood.parts)
         wood_tex = sum(p.material.texture.size for p in imp.wood.parts if p.material.texture is not None)
         out = {"rdm": int(imp.rdm.radii.size * 4), "color_cubemap": int(imp.color.size),
-               "opacity": int(imp.opacity.sigma.size * 2) if imp.opacity is not None else 0,
+               "opacity": int(imp.opacity.sigma.size * 2 + imp.opacity.wood.nbytes) if imp.opacity is not None else 0,
                "leaflet_textures": int(3 * leaf * 4 / 3), "billboard_points": int(imp.cloud_points.nbytes),
                "wood": int(wood + wood_tex * 4 / 3)}
         if card_size:

@@ -203,7 +203,8 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
         if opacity_resolution:
             from treeform.geometry.opacity import opacity_grid
 
-            opacity = opacity_grid(mesh, resolution=opacity_resolution)
+            # (the trunk and thickest limbs as capsules beside the grid, from the skeleton written with the tree)
+            opacity = opacity_grid(mesh, resolution=opacity_resolution, skeleton=_skeleton_beside(glb))
     with timer.stage("color"):
         from treeform.crown.color_cubemap import color_cubemap, cross_from_faces
 
@@ -242,7 +243,9 @@ def make_impostor(tree_dir, *, out=None, face: int = 256, rdm_resolution: int = 
                 "mean_radius": round(rdm.mean_radius(), 6)},
         **({"opacity": {"file": "opacity.npz", "resolution": opacity_resolution,
                         "origin": [round(float(c), 6) for c in opacity.origin], "voxel": round(opacity.voxel, 6),
-                        "model": "extinction 1/m per voxel; the tree is hit at optical depth ln 2"}}
+                        "wood_capsules": int(len(opacity.wood)),
+                        "model": "extinction 1/m per voxel; the tree is hit at optical depth ln 2, or on a "
+                                 "capsule of wood in front of that"}}
            if opacity is not None else {}),
         # the front view as the relief impostor's planar colour (seed 001 §4.1, for distant trees):
         # the crown centre's pixel and the view's scale there

@@ -64,7 +64,7 @@ def _species_data(s, cards=None) -> dict:
 
     from treeform.io.gltf import GlbNode, write_glb, write_glb_scene
     from treeform.render.cloud import leaflet_textures
-    from treeform.render.impostor import relief_bounds, relief_box
+    from treeform.render.impostor import relief_bounds, relief_box, wood_uniforms
 
     imp = s.impostor
     _, _, rmin, rmax = relief_bounds(imp.rdm)
@@ -81,8 +81,12 @@ def _species_data(s, cards=None) -> dict:
                 "radii": _b64(imp.rdm.radii.astype("<f4"))},
         "color": {"face": int(face), "rgb": _b64(color.astype(np.uint8))},
         # the opacity grid as half floats (a 3D texture WebGL 2 filters linearly without an extension)
+        # and its capsules of wood as the shader's two vec4 arrays, with their bark colour
         **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin],
-                        "extent": float(og.extent), "sigma": _b64(og.sigma.astype("<f2"))}} if og is not None else {}),
+                        "extent": float(og.extent), "sigma": _b64(og.sigma.astype("<f2")),
+                        "nwood": int(len(og.wood)), "bark": [float(x) for x in og.bark],
+                        "wood_a": [float(x) for x in wood_uniforms(og)[0].ravel()],
+                        "wood_b": [float(x) for x in wood_uniforms(og)[1].ravel()]}} if og is not None else {}),
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
         "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),
@@ -109,6 +113,7 @@ def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_dist
         "switch_distance": float(switch_distance), "area": [float(a) for a in area], "full_px": float(full_px),
         "card_px": float(card_px) if cards is not None else 0.0,
         "relief_steps": int(relief_steps), "relief_refine": int(relief_refine), "cloud_ao": 0.3,
+        "max_wood": relief.MAX_WOOD,
         "sky": [float(x) for x in sky[:3]], "ground": [float(x) for x in ground[:3]],
         "lighting": {"direction": [float(x) for x in lighting.world_direction(camera)], "key": list(lighting.key),
                      "sky": list(lighting.sky), "ground": list(lighting.ground)},

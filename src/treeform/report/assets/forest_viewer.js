@@ -28,6 +28,12 @@
     return t;
   }
 
+  function vec4s(flat, n) {  // a uniform vec4[n] array from its flat floats (zeros without them)
+    const out = [];
+    for (let i = 0; i < n; i++) out.push(flat ? new THREE.Vector4().fromArray(flat, 4 * i) : new THREE.Vector4());
+    return out;
+  }
+
   function cube(faces, res, format, type) {  // six DataTextures, OpenGL face order, rows as stored
     const tex = new THREE.CubeTexture(faces.map(function (f) {
       const t = new THREE.DataTexture(f, res, res, format, type);
@@ -100,6 +106,11 @@
         u_olo: { value: new THREE.Vector3().fromArray(S.opacity ? S.opacity.origin : [0, 0, 0]) },
         u_oext: { value: S.opacity ? S.opacity.extent : 1 }, u_osteps: { value: D.relief_steps },
         u_ovox: { value: S.opacity ? S.opacity.extent / S.opacity.res : 1 },
+        // its capsules of wood (the trunk and thick limbs a grid of its voxel would fade), bark-coloured
+        u_nwood: { value: S.opacity ? S.opacity.nwood : 0 },
+        u_wa: { value: vec4s(S.opacity ? S.opacity.wood_a : null, D.max_wood) },
+        u_wb: { value: vec4s(S.opacity ? S.opacity.wood_b : null, D.max_wood) },
+        u_bark: { value: new THREE.Vector3().fromArray(S.opacity ? S.opacity.bark : [0.35, 0.28, 0.22]) },
       }, lightUniforms()),
     }));
     const reliefMesh = new THREE.Mesh(box, relief);
