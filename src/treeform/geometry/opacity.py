@@ -159,23 +159,24 @@ def wood_capsules(skeleton, voxel: float, *, max_capsules: int = MAX_WOOD,
 def _fits(p: np.ndarray, r: np.ndarray, tol: float) -> bool:
     """Whether the nodes ``p`` (n, 3) lie within ``tol`` and within their mean radius of the segment between
     the first and last, with radii ``r`` within a third of their mean."""
-    a, b = p[0], p[-1]
-    ab = b - a
-    L2 = float(ab @ ab)
-    if L2 <= 0:
+    if np.array_equal(p[0], p[-1]):
         return False
-    t = np.clip((p - a) @ ab / L2, 0.0, 1.0)
-    dist = np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+    dist = _segment_distance(p, p[0], p[-1])
     return bool(dist.max() <= min(tol, r.mean()) and r.max() - r.min() <= r.mean() / 3)
+
+
+def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) distance of each point (N, 3) to the segment ``a``-``b``."""
+    ab = b - a
+    t = np.clip((points - a) @ ab / max(float(ab @ ab), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
 
 
 def _in_capsules(points: np.ndarray, capsules: np.ndarray, margin: float) -> np.ndarray:
     """(N,) bool: points within their radius + ``margin`` of any capsule's axis."""
     inside = np.zeros(len(points), bool)
-    for ax, ay, az, bx, by, bz, r in capsules.astype(np.float64):
-        a, ab = np.array([ax, ay, az]), np.array([bx - ax, by - ay, bz - az])
-        t = np.clip((points - a) @ ab / max(float(ab @ ab), 1e-300), 0.0, 1.0)
-        inside |= np.linalg.norm(points - (a + t[:, None] * ab), axis=1) <= r + margin
+    for c in capsules.astype(np.float64):
+        inside |= _segment_distance(points, c[:3], c[3:6]) <= c[6] + margin
     return inside
 
 

@@ -198,10 +198,11 @@ def capsule_hit(o: np.ndarray, d: np.ndarray, a: np.ndarray, b: np.ndarray, r: f
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(slanted, (-qb - np.sqrt(np.maximum(h, 0.0))) / np.where(slanted, qa, 1.0), 0.0)
     y = np.where(slanted, bo + t * bd, -bd)  # (along the axis: the end the ray comes to first)
-    side = (h >= 0) & slanted & (y > 0) & (y < L2) & (tm + t > 0)
+    body = (h >= 0) & slanted & (y > 0) & (y < L2)
+    side = body & (tm + t > 0)
     out[side] = (tm + t)[side]
     # the end caps: the sphere at the end the side's hit went past
-    rest = (h >= 0) & ~((h >= 0) & slanted & (y > 0) & (y < L2))
+    rest = (h >= 0) & ~body
     oc = oa - np.where((y <= 0)[:, None], 0.0, ba)
     sb = np.einsum("ij,ij->i", d, oc)
     sc = np.einsum("ij,ij->i", oc, oc) - r * r

@@ -70,6 +70,7 @@ def _species_data(s, cards=None) -> dict:
     _, _, rmin, rmax = relief_bounds(imp.rdm)
     lo, hi = relief_box(imp.rdm, imp.opacity)
     og = imp.opacity
+    wa, wb = wood_uniforms(og) if og is not None else (None, None)
     rgba, shade, geo, luma = leaflet_textures(imp.leaflets)  # as the renderer's CloudPass packs them
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
@@ -85,8 +86,7 @@ def _species_data(s, cards=None) -> dict:
         **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin],
                         "extent": float(og.extent), "sigma": _b64(og.sigma.astype("<f2")),
                         "nwood": int(len(og.wood)), "bark": [float(x) for x in og.bark],
-                        "wood_a": [float(x) for x in wood_uniforms(og)[0].ravel()],
-                        "wood_b": [float(x) for x in wood_uniforms(og)[1].ravel()]}} if og is not None else {}),
+                        "wood_a": [float(x) for x in wa.ravel()], "wood_b": [float(x) for x in wb.ravel()]}} if og is not None else {}),
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
         "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),
