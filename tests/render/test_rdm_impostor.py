@@ -194,3 +194,54 @@ def test_a_trunk_thinner_than_a_voxel_stays_whole_through_its_capsules(gl):
             assert (col[:, 0] > col[:, 1]).all() and (col[:, 1] > col[:, 2]).all()  # brown bark, not green
     assert shown["capsules"].all()
     assert shown["grid"].mean() < 0.6
+
+
+def _scattered_capsules(n, seed):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-0.8, 0.8, (n, 3))
+    b = a + rng.normal(0.0, 0.35, (n, 3))
+    return np.c_[a, b, rng.uniform(0.02, 0.09, n)].astype(np.float32)
+
+
+@pytest.mark.parametrize("n", [1, 7, 9, 30, 32])
+def test_wood_uniforms_keep_every_capsule_inside_its_groups_sphere(n):
+    """Every capsule fills a row of the shader's arrays, each group's rows are its own capsules, and its
+    bounding sphere holds them whole (both ends, their radius included)."""
+    from treeform.render.impostor import WOOD_GROUP, wood_uniforms
+    from treeform.structures import OpacityGrid
+
+    wood = _scattered_capsules(n, n)
+    wa, wb, wg, rows = wood_uniforms(OpacityGrid(np.zeros((4, 4, 4), np.float32), -np.ones(3), 0.5, wood=wood))
+    assert rows % WOOD_GROUP == 0 and n <= rows <= len(wa)
+    got = {tuple(np.r_[wa[i, :3], wb[i, :3], wa[i, 3]]) for i in range(rows)}
+    assert got == {tuple(c) for c in wood}  # every capsule, and only those (short groups repeat their own)
+    assert not wa[rows:].any() and not wg[rows // WOOD_GROUP:].any()
+    for i in range(rows):
+        c, rg = wg[i // WOOD_GROUP, :3], wg[i // WOOD_GROUP, 3]
+        for end in (wa[i, :3], wb[i, :3]):
+            assert np.linalg.norm(end - c) + wa[i, 3] <= rg + 1e-6
+
+
+def test_many_capsules_are_hit_as_the_cpu_hits_them(gl):
+    """30 capsules (several groups the shader skips by their spheres) in an empty grid, seen from four
+    sides: the relief draws the pixels whose rays meet a capsule on the CPU, at the same depth."""
+    from treeform.structures import OpacityGrid
+
+    grid = OpacityGrid(np.zeros((16, 16, 16), np.float32), np.array([-1.6, -1.6, -1.6]), 0.2,
+                       wood=_scattered_capsules(30, 5))
+    rdm = RadialDistanceMap(np.zeros(3), np.full((6, 16, 16), 2.8, np.float32))
+    for eye in ((0.0, 0.5, 7.0), (7.0, 1.0, 0.0), (-4.0, 3.0, -5.0), (0.3, 8.0, 0.2)):
+        cam = Camera(64, 64, 30.0, eye, (0.0, 0.0, 0.0))
+        res = render_rdm_impostor(rdm, cam, opacity=grid)
+        h, w = cam.height, cam.width
+        vv, uu = np.mgrid[:h, :w]
+        o = np.asarray(cam.position, float)
+        dirs = cam.unproject(uu.ravel() + 0.5, vv.ravel() + 0.5, np.full(h * w, 5.0)) - o
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        t = grid.wood_hit(np.repeat(o[None], h * w, 0), dirs).reshape(h, w)
+        hit = np.isfinite(t)
+        assert 0.03 < hit.mean() < 0.7
+        assert (hit == res.mask).mean() > 0.995  # the odd pixel grazing a capsule's edge
+        both = hit & res.mask
+        depth = t * (dirs @ np.asarray(cam.axes()[2])).reshape(h, w)
+        assert np.median(np.abs(depth[both] - res.depth[both])) < 1e-3

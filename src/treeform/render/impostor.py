@@ -37,6 +37,8 @@ from treeform.render.shaders import YAW_GLSL
 from treeform.structures.camera import Camera
 from treeform.structures.opacity import MAX_WOOD
 
+WOOD_GROUP = 8  # capsules the relief shader skips at once by their bounding sphere (wood_uniforms)
+
 __all__ = ["ReliefPass", "relief_bounds", "relief_box", "render_rdm_impostor", "wood_uniforms"]
 
 _VS = "#version 330\n" + YAW_GLSL + """
@@ -56,7 +58,7 @@ void main() {
 }
 """
 
-_FS = "#version 330\n" + f"#define MAX_WOOD {MAX_WOOD}\n" + YAW_GLSL + """
+_FS = "#version 330\n" + f"#define MAX_WOOD {MAX_WOOD}\n#define WOOD_GROUP {WOOD_GROUP}\n" + YAW_GLSL + """
 uniform samplerCube u_rdm;
 uniform samplerCube u_color;
 uniform mat4 u_view;
@@ -88,9 +90,10 @@ uniform vec3 u_olo;         // the opacity cube's lowest corner and edge (the tr
 uniform float u_oext;
 uniform float u_ovox;       // its voxel's edge
 uniform int u_osteps;
-uniform int u_nwood;        // the opacity grid's capsules (OpacityGrid.wood): a (xyz, radius), b (xyz)
-uniform vec4 u_wa[MAX_WOOD];
+uniform int u_nwood;        // the opacity grid's capsules (wood_uniforms): a (xyz, radius), b (xyz), in groups
+uniform vec4 u_wa[MAX_WOOD];  // of WOOD_GROUP neighbours, each group's bounding sphere in u_wg
 uniform vec4 u_wb[MAX_WOOD];
+uniform vec4 u_wg[MAX_WOOD / WOOD_GROUP];
 uniform vec3 u_bark;        // their albedo
 in vec3 v_local;
 flat in vec4 v_inst;
@@ -188,14 +191,25 @@ float capsule_hit(vec3 ro, vec3 rd, vec3 a, vec3 b, float r) {  // where the ray
     return ts > 0.0 ? ts : -1.0;
 }
 
-float wood_hit(vec3 eye, vec3 dir, out vec3 n) {  // the first capsule along the ray, or -1; n its normal
-    float best = -1.0;
+float wood_hit(vec3 eye, vec3 dir, float tmax, out vec3 n) {  // the first capsule along the ray nearer than
+    // tmax (< 0: no bound), or -1; n its normal. A group's capsules are tested only when the ray meets the
+    // group's bounding sphere in front of the nearest hit so far. The skip is a loop's count, not an if: a CPU
+    // rasterizer (llvmpipe) runs both sides of an if under a mask, but leaves a loop no lane enters
+    float best = tmax;
     int k = -1;
-    for (int i = 0; i < MAX_WOOD; i++) {
-        if (i >= u_nwood) break;
-        float t = capsule_hit(eye, dir, u_wa[i].xyz, u_wb[i].xyz, u_wa[i].w);
-        if (t > 0.0 && (best < 0.0 || t < best)) { best = t; k = i; }
+    for (int g = 0; g < MAX_WOOD / WOOD_GROUP; g++) {
+        if (g * WOOD_GROUP >= u_nwood) break;
+        vec3 oc = u_wg[g].xyz - eye;
+        float tg = dot(oc, dir), rg = u_wg[g].w;
+        bool meets = dot(oc, oc) - tg * tg <= rg * rg && tg + rg > 0.0 && (best <= 0.0 || tg - rg < best);
+        int m = meets ? WOOD_GROUP : 0;
+        for (int j = 0; j < m; j++) {
+            int i = g * WOOD_GROUP + j;
+            float t = capsule_hit(eye, dir, u_wa[i].xyz, u_wb[i].xyz, u_wa[i].w);
+            if (t > 0.0 && (best <= 0.0 || t < best)) { best = t; k = i; }
+        }
     }
+    if (k < 0) best = -1.0;
     n = vec3(0.0, 1.0, 0.0);
     if (k >= 0) {
         vec3 a = u_wa[k].xyz, ba = u_wb[k].xyz - a, p = eye + dir * best;
@@ -220,8 +234,8 @@ void main() {
     float tw = -1.0;
     if (u_use_opacity == 1) {
         b = opacity_march(eye, dir, inv);
-        tw = wood_hit(eye, dir, wn);
-        if (tw > 0.0 && (b < 0.0 || tw < b)) b = tw; else tw = -1.0;
+        tw = wood_hit(eye, dir, b, wn);  // only a capsule in front of the crown's ln 2 point
+        if (tw > 0.0) b = tw;
         if (b < 0.0) discard;
     } else {
         b = rdm_march(eye, dir, t0, t1);
@@ -252,14 +266,55 @@ void main() {
 }
 """
 
-def wood_uniforms(opacity) -> tuple[np.ndarray, np.ndarray]:
-    """The grid's capsules as the shader's two ``vec4[MAX_WOOD]`` arrays (float32, unused rows zero):
-    ``(a, radius)`` and ``(b, 0)``."""
+def wood_uniforms(opacity) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The grid's capsules as the shader's uniforms ``(u_wa, u_wb, u_wg, u_nwood)``.
+
+    The capsules are split into groups of at most :data:`WOOD_GROUP` neighbours (halving the set
+    along the widest spread of their middles until each part is small enough); each group fills
+    :data:`WOOD_GROUP` rows, short ones repeating their first capsule (the same hit twice), and
+    its bounding sphere lets the shader skip all of them at once.
+
+    Returns
+    -------
+    wa, wb : ndarray, shape (MAX_WOOD, 4), float32
+        ``(a, radius)`` and ``(b, 0)`` per row; unused rows zero.
+    wg : ndarray, shape (MAX_WOOD // WOOD_GROUP, 4), float32
+        Each group's sphere ``(centre, radius)``, holding its capsules (a thousandth to spare).
+    n : int
+        Rows in use, a multiple of :data:`WOOD_GROUP`.
+
+    Examples
+    --------
+    >>> from treeform.structures.opacity import OpacityGrid
+    >>> g = OpacityGrid(np.zeros((4, 4, 4), np.float32), np.zeros(3), 1.0,
+    ...                 wood=np.array([[0, 0, 0, 0, 0.6, 0, 0.05]], np.float32))
+    >>> wa, wb, wg, n = wood_uniforms(g)
+    >>> wa.shape, wg.shape, n, [round(float(x), 3) for x in wg[0]]
+    ((32, 4), (8, 4), 4, [0.0, 0.3, 0.0, 0.35])
+    """
+    w = np.asarray(opacity.wood, np.float64).reshape(-1, 7)
     wa = np.zeros((MAX_WOOD, 4), np.float32)
     wb = np.zeros((MAX_WOOD, 4), np.float32)
-    w = opacity.wood
-    wa[:len(w), :3], wa[:len(w), 3], wb[:len(w), :3] = w[:, :3], w[:, 6], w[:, 3:6]
-    return wa, wb
+    wg = np.zeros((MAX_WOOD // WOOD_GROUP, 4), np.float32)
+    mid = 0.5 * (w[:, :3] + w[:, 3:6])
+    reach = 0.5 * np.linalg.norm(w[:, 3:6] - w[:, :3], axis=1) + w[:, 6]  # each capsule's own sphere
+
+    def split(idx):
+        if len(idx) <= WOOD_GROUP:
+            return [idx]
+        axis = int(np.argmax(np.ptp(mid[idx], axis=0)))
+        idx = idx[np.argsort(mid[idx, axis], kind="stable")]
+        return split(idx[:len(idx) // 2]) + split(idx[len(idx) // 2:])
+
+    groups = split(np.arange(len(w))) if len(w) else []
+    for g, idx in enumerate(groups):
+        lo, hi = (mid[idx] - reach[idx, None]).min(0), (mid[idx] + reach[idx, None]).max(0)
+        c = 0.5 * (lo + hi)
+        wg[g, :3], wg[g, 3] = c, np.max(np.linalg.norm(mid[idx] - c, axis=1) + reach[idx]) * 1.001
+        rows = np.concatenate([idx, np.repeat(idx[:1], WOOD_GROUP - len(idx))])
+        r = slice(g * WOOD_GROUP, (g + 1) * WOOD_GROUP)
+        wa[r, :3], wa[r, 3], wb[r, :3] = w[rows, :3], w[rows, 6], w[rows, 3:6]
+    return wa, wb, wg, WOOD_GROUP * len(groups)
 
 
 def relief_bounds(rdm) -> tuple:
@@ -437,11 +492,13 @@ class ReliefPass(GLResources):
                 _set(prog, "u_oext", float(self.opacity.extent))
                 _set(prog, "u_ovox", float(self.opacity.voxel))
                 _set(prog, "u_osteps", self.opacity_steps)
-                _set(prog, "u_nwood", len(self.opacity.wood))
+                _set(prog, "u_nwood", 0 if __import__("os").environ.get("TF_NOWOOD") else len(self.opacity.wood))
                 _set(prog, "u_bark", tuple(float(x) for x in self.opacity.bark))
-                wa, wb = wood_uniforms(self.opacity)
+                wa, wb, wg, nwood = wood_uniforms(self.opacity)
+                _set(prog, "u_nwood", nwood)
                 _set(prog, "u_wa", wa.tobytes())
                 _set(prog, "u_wb", wb.tobytes())
+                _set(prog, "u_wg", wg.tobytes())
             _set(prog, "u_planar", int(self.front is not None))
             if self.front is not None:
                 right, up, _ = camera.axes()

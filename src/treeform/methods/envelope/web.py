@@ -70,7 +70,7 @@ def _species_data(s, cards=None) -> dict:
     _, _, rmin, rmax = relief_bounds(imp.rdm)
     lo, hi = relief_box(imp.rdm, imp.opacity)
     og = imp.opacity
-    wa, wb = wood_uniforms(og) if og is not None else (None, None)
+    wa, wb, wg, nwood = wood_uniforms(og) if og is not None else (None, None, None, 0)
     rgba, shade, geo, luma = leaflet_textures(imp.leaflets)  # as the renderer's CloudPass packs them
     face = min(128, imp.color.shape[1])
     color = np.stack([cv2.resize(f, (face, face), interpolation=cv2.INTER_AREA) for f in imp.color]) \
@@ -85,8 +85,9 @@ def _species_data(s, cards=None) -> dict:
         # and its capsules of wood as the shader's two vec4 arrays, with their bark colour
         **({"opacity": {"res": int(og.resolution), "origin": [float(x) for x in og.origin],
                         "extent": float(og.extent), "sigma": _b64(og.sigma.astype("<f2")),
-                        "nwood": int(len(og.wood)), "bark": [float(x) for x in og.bark],
-                        "wood_a": [float(x) for x in wa.ravel()], "wood_b": [float(x) for x in wb.ravel()]}} if og is not None else {}),
+                        "nwood": int(nwood), "bark": [float(x) for x in og.bark],
+                        "wood_a": [float(x) for x in wa.ravel()], "wood_b": [float(x) for x in wb.ravel()],
+                        "wood_g": [float(x) for x in wg.ravel()]}} if og is not None else {}),
         "leaflet": {"size": int(rgba.shape[0]), "rgba": _b64(rgba), "shade": _b64(shade), "geo": _b64(geo), "luma": luma},
         "cloud": {"points": _b64(imp.cloud_points.astype("<f4")), "size": float(imp.cloud_size)},
         "wood": _glb_b64(lambda p: write_glb(imp.wood, p)),
@@ -113,7 +114,7 @@ def forest_page_writers(species: list, trees: np.ndarray, camera, *, switch_dist
         "switch_distance": float(switch_distance), "area": [float(a) for a in area], "full_px": float(full_px),
         "card_px": float(card_px) if cards is not None else 0.0,
         "relief_steps": int(relief_steps), "relief_refine": int(relief_refine), "cloud_ao": 0.3,
-        "max_wood": relief.MAX_WOOD,
+        "max_wood": relief.MAX_WOOD, "wood_groups": relief.MAX_WOOD // relief.WOOD_GROUP,
         "sky": [float(x) for x in sky[:3]], "ground": [float(x) for x in ground[:3]],
         "lighting": {"direction": [float(x) for x in lighting.world_direction(camera)], "key": list(lighting.key),
                      "sky": list(lighting.sky), "ground": list(lighting.ground)},

@@ -110,6 +110,7 @@
         u_nwood: { value: S.opacity ? S.opacity.nwood : 0 },
         u_wa: { value: vec4s(S.opacity ? S.opacity.wood_a : null, D.max_wood) },
         u_wb: { value: vec4s(S.opacity ? S.opacity.wood_b : null, D.max_wood) },
+        u_wg: { value: vec4s(S.opacity ? S.opacity.wood_g : null, D.wood_groups) },
         u_bark: { value: new THREE.Vector3().fromArray(S.opacity ? S.opacity.bark : [0.35, 0.28, 0.22]) },
       }, lightUniforms()),
     }));
