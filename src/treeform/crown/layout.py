@@ -11,6 +11,11 @@ from treeform._shared.errors import NoTreeFoundError
 from treeform.structures.segmentation import Segmentation
 
 
+TRUNK_PRIOR = 0.02
+"""Trunk width / tree height (pixels) where the photo does not show the trunk: open-grown trees' trunks
+are 1-4 % of their height across (the growth engine's species: 0.8-4.2 %)."""
+
+
 @dataclass
 class TreeLayout:
     """Pixel measurements of the tree in its photo (row 0 at the top).
@@ -26,7 +31,8 @@ class TreeLayout:
     top_row : int
         Highest tree row.
     trunk_width : float
-        Median trunk width in pixels.
+        Median trunk width in pixels: of the wood at the base, else (the trunk hidden)
+        :data:`TRUNK_PRIOR` of the tree's height.
     trunk_path : ndarray, shape (K, 2)
         The trunk's centre line (column, row) from the base up to ``trunk_top``.
     """
@@ -88,11 +94,9 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
 
     foot_col, bottom = trunk_foot(tree, seg.wood_mask)
     base_col = foot_col + 0.5
-    band = tree[max(top, bottom - max(1, size // 50)): bottom + 1]
-    cols = np.nonzero(band.any(axis=0))[0]
     crown_rows = np.nonzero(crown.any(axis=1))[0]
     crown_bottom = int(crown_rows.max())
-    # trunk: the wood region touching the base, else the tree pixels below the crown
+    # trunk: the wood region touching the base, else hidden
     trunk_wood = _base_wood(seg.wood_mask, base_col, bottom, size)
     if trunk_wood is not None:
         rows_w = np.nonzero(trunk_wood.any(axis=1))[0]
@@ -101,9 +105,12 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
         band_rows = trunk_wood[hi_r - int(0.5 * span): hi_r - int(0.1 * span) + 1]  # above the root flare
         widths = band_rows.sum(axis=1)
     else:
-        widths = tree[crown_bottom + 1: bottom + 1].sum(axis=1) if crown_bottom < bottom else np.array([len(cols)])
+        # no wood at the foot: the trunk is hidden. What the mask shows under the crown is not it -- a
+        # bush behind the foot, leaves hanging low, the foliage of a crown down to the ground (as wide as
+        # those, the trunk became a log: a radius of 6 % of the height, the pipeline's upper bound)
+        widths = np.array([TRUNK_PRIOR * size])
     widths = widths[widths > 0]
-    trunk_width = float(np.median(widths)) if len(widths) else float(len(cols))
+    trunk_width = float(np.median(widths)) if len(widths) else TRUNK_PRIOR * size
     # trunk top: where the trunk meets the crown (the tree centre a little below the crown bottom)
     probe = min(bottom, crown_bottom + max(1, size // 50))
     row = tree[probe]
