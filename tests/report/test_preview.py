@@ -115,3 +115,20 @@ def test_compose_strip_labels_every_panel():
         x += w + 6
     with pytest.raises(InputError, match="labels"):
         compose_strip(tiles, labels=["one"])
+
+
+def test_a_tile_narrower_than_its_label_is_widened_so_labels_do_not_overlap():
+    """A side view of a slender tree is narrower than "side (from the right)": its panel widens
+    (the picture centred) so the label ends before the next panel's starts."""
+    narrow = np.zeros((120, 12, 3), np.uint8)  # dark: 12 px wide at height 120
+    tiles = [narrow, np.full((120, 120, 3), 255, np.uint8)]
+    out = compose_strip(tiles, labels=[PREVIEW_LABELS["side"], PREVIEW_LABELS["top"]], height=120,
+                        background=(255, 255, 255))
+    band = out.shape[0] - 120 - 12
+    ink = (out[6:6 + band].min(axis=2) < 100).any(axis=0)  # columns with label text
+    runs = np.flatnonzero(np.diff(np.r_[0, ink.astype(np.int8), 0]))  # label starts and ends
+    gaps = runs[2::2] - runs[1:-1:2]
+    assert out.shape[1] > 12 + 120 + 3 * 6 and gaps.max() >= 6  # a clear gap between the two labels
+    body = out[6 + band + 1:6 + band + 119]
+    dark = np.flatnonzero((body.max(axis=2) < 50).any(axis=0))
+    assert len(dark) and dark.max() - dark.min() + 1 == 12  # the picture kept its own width

@@ -64,7 +64,8 @@ def compose_strip(tiles: list, *, labels=None, height: int = 360, gap: int = 6,
     labels : list of str, optional
         One per tile: written in dark grey in a band above the tile (Pillow's bundled font,
         scaled with ``height``), and a thin grey frame drawn round each tile so white
-        renders stand apart.
+        renders stand apart. A tile narrower than its label is widened with ``background``
+        (the picture centred), so no label runs into the next.
     height : int
         Height of every tile in pixels.
     gap : int
@@ -83,6 +84,17 @@ def compose_strip(tiles: list, *, labels=None, height: int = 360, gap: int = 6,
         w = max(1, round(im.width * height / im.height))
         scaled.append(np.asarray(im.resize((w, height), Image.LANCZOS)))
     band = 0 if labels is None else max(12, round(0.075 * height))
+    if labels is not None:  # a tile narrower than its label is widened (centred on the background)
+        font = _font(max(8, round(0.72 * band)))
+        probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+        for i, text in enumerate(labels):
+            need = int(np.ceil(probe.textlength(str(text), font=font))) + 4
+            if need > scaled[i].shape[1]:
+                left = (need - scaled[i].shape[1]) // 2
+                pad = np.empty((height, need, 3), np.uint8)
+                pad[:] = background
+                pad[:, left:left + scaled[i].shape[1]] = scaled[i]
+                scaled[i] = pad
     total = sum(s.shape[1] for s in scaled) + gap * (len(scaled) + 1)
     out = np.empty((height + 2 * gap + band, total, 3), np.uint8)
     out[:] = background
@@ -96,7 +108,6 @@ def compose_strip(tiles: list, *, labels=None, height: int = 360, gap: int = 6,
         return out
     img = Image.fromarray(out)
     draw = ImageDraw.Draw(img)
-    font = _font(max(8, round(0.72 * band)))
     baseline = draw.textbbox((0, 0), "Aphotog", font=font)[3]  # one baseline for every label
     for x0, s, text in zip(boxes, scaled, labels):
         if gap > 0:
