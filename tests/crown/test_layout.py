@@ -43,3 +43,20 @@ def test_a_hidden_trunk_takes_the_prior_not_what_hides_it(under):
     size = rows.max() - rows.min() + 1
     assert lay.trunk_width == pytest.approx(TRUNK_PRIOR * size)
     assert lay.trunk_width < 0.05 * size
+
+
+def test_every_part_of_the_crown_is_kept_but_specks():
+    """A sapling's crown in pieces along its stem: the tuft at the top, a clump of low leaves (a tenth of
+    its area) and a speck (under CROWN_PART of it). The crown the envelope inflates and the leaves fill
+    holds the tuft and the clump; it used to hold the tuft alone."""
+    from treeform.crown.layout import CROWN_PART
+
+    lab = np.zeros((200, 160), np.uint8)
+    yy, xx = np.mgrid[:200, :160]
+    lab[((yy - 50) / 40.0) ** 2 + ((xx - 80) / 40.0) ** 2 <= 1] = 1  # the tuft, ~5,000 px
+    lab[120:135, 84:118] = 1  # low leaves beside the stem, ~500 px
+    lab[150:154, 60:64] = 1  # a speck, 16 px
+    lab[90:195, 78:82] = 2  # the stem
+    lay = tree_layout(Segmentation(lab))
+    assert lay.crown_mask[50, 80] and lay.crown_mask[127, 100]
+    assert not lay.crown_mask[152, 62] and 16 < CROWN_PART * 5000

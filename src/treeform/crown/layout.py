@@ -11,6 +11,11 @@ from treeform._shared.errors import NoTreeFoundError
 from treeform.structures.segmentation import Segmentation
 
 
+CROWN_PART = 0.02
+"""A part of the crown apart from the rest (a sapling's clumps of leaves along its stem, the lower limbs of a
+bare tree the mask found in two pieces) is kept when its area is at least this share of the largest part's;
+smaller ones are specks."""
+
 TRUNK_PRIOR = 0.02
 """Trunk width / tree height (pixels) where the photo does not show the trunk: open-grown trees' trunks
 are 1-4 % of their height across (the growth engine's species: 0.8-4.2 %)."""
@@ -56,8 +61,9 @@ class TreeLayout:
 def tree_layout(seg: Segmentation) -> TreeLayout:
     """Measure the crown silhouette, trunk base, trunk top and trunk width.
 
-    The crown is the foliage closed over small gaps, holes filled, keeping its largest
-    component (the whole tree mask when there is almost no foliage, e.g. a bare tree).
+    The crown is the foliage closed over small gaps, holes filled, keeping its parts of at
+    least :data:`CROWN_PART` of the largest one's area (the whole tree mask when there is almost
+    no foliage, e.g. a bare tree).
     The trunk base is :func:`~treeform.skeleton.trunk_foot` (the bottom of the thickest wood
     near the bottom of the tree, so a twig or a weeping curtain hanging lower is not taken);
     the trunk is then traced up through the wood pixels, row by row, while one run of wood at
@@ -89,7 +95,8 @@ def tree_layout(seg: Segmentation) -> TreeLayout:
     lab, n = ndi.label(crown)
     if n == 0:
         raise NoTreeFoundError("no tree found: no crown region in the mask")
-    crown = lab == (np.argmax(np.bincount(lab.ravel())[1:]) + 1)
+    areas = np.bincount(lab.ravel())[1:]
+    crown = np.isin(lab, np.flatnonzero(areas >= CROWN_PART * areas.max()) + 1)
     from treeform.skeleton.wood import trunk_foot
 
     foot_col, bottom = trunk_foot(tree, seg.wood_mask)
