@@ -139,6 +139,17 @@ def test_from_skeleton_samples_long_internodes_and_adds_radius():
     assert single.radii.tolist() == [[0.01]]
 
 
+def test_a_branch_hanging_below_the_root_counts_in_the_lowest_layer():
+    """A weeping twig 3 cm under the foot (a willow's, from the abs route) is part of the tree, not an error:
+    it widens the lowest layer; the points' constructor, given an explicit base, still refuses such points."""
+    pos = np.array([[0, 0, 0], [0, 3, 0], [1.5, 1, 0], [1.8, -0.03, 0]], float)
+    s = TreeSkeleton(pos, np.array([-1, 0, 1, 2]), np.array([0.2, 0.1, 0.04, 0.02]), np.array([0, 0, 1, 1]))
+    rbv = RadialBoundingVolume.from_skeleton(s, level=2, samples_per_segment=2)
+    assert rbv.height == 3.0 and rbv.radii[0].max() == pytest.approx(1.8 + 0.02)
+    with pytest.raises(InputError, match="below the base"):
+        RadialBoundingVolume.from_points(pos, level=2, axis_origin=(0.0, 0.0, 0.0))
+
+
 def test_save_load_round_trip_is_exact(tmp_path):
     rbv = RadialBoundingVolume.from_points(tree_points(), level=4, axis_origin=(0.1, -0.2, 0.3)).normalized()
     rbv.save(tmp_path / "rbv.npz")

@@ -253,7 +253,8 @@ class RadialBoundingVolume:
         still count; each sample's radial distance is grown by the branch radius interpolated
         there (the branch surface, not only its centre line; the radius is added in the
         sector of the centre line, a close bound for thin branches). The axis passes through
-        the root node (``positions[0]``).
+        the root node (``positions[0]``). A node below the root (a weeping branch reaching
+        under the foot) counts in the lowest layer.
 
         Parameters
         ----------
@@ -284,7 +285,9 @@ class RadialBoundingVolume:
             f = np.linspace(0.0, 1.0, int(samples_per_segment) + 1)[:, None]  # (S+1, 1)
             samples = (pos[par][None] * (1 - f[..., None]) + pos[child][None] * f[..., None]).reshape(-1, 3)
             radius = (rad[par][None] * (1 - f) + rad[child][None] * f).reshape(-1)
-        return cls._from_samples(samples - origin, radius, level, origin)
+        local = samples - origin
+        local[:, 1] = np.maximum(local[:, 1], 0.0)
+        return cls._from_samples(local, radius, level, origin)
 
     # ------------------------------------------------------------------ queries
     def contains(self, points) -> np.ndarray:
