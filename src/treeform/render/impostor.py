@@ -290,7 +290,7 @@ def wood_uniforms(opacity) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     ...                 wood=np.array([[0, 0, 0, 0, 0.6, 0, 0.05]], np.float32))
     >>> wa, wb, wg, n = wood_uniforms(g)
     >>> wa.shape, wg.shape, n, [round(float(x), 3) for x in wg[0]]
-    ((32, 4), (8, 4), 4, [0.0, 0.3, 0.0, 0.35])
+    ((32, 4), (4, 4), 8, [0.0, 0.3, 0.0, 0.35])
     """
     w = np.asarray(opacity.wood, np.float64).reshape(-1, 7)
     wa = np.zeros((MAX_WOOD, 4), np.float32)
