@@ -394,6 +394,7 @@ class ReliefPass(GLResources):
         self.opacity = opacity
         self.opacity_steps = 0 if opacity is None else check_int(
             2 * opacity.resolution if opacity_steps is None else opacity_steps, "opacity_steps", 4, 4096)
+        self._wood = None if opacity is None else wood_uniforms(opacity)  # grouped once, drawn every frame
         self.steps = check_int(steps, "steps", 4, 4096)
         self.refine = check_int(refine, "refine", 0, 32)
         if color is None:
@@ -492,9 +493,8 @@ class ReliefPass(GLResources):
                 _set(prog, "u_oext", float(self.opacity.extent))
                 _set(prog, "u_ovox", float(self.opacity.voxel))
                 _set(prog, "u_osteps", self.opacity_steps)
-                _set(prog, "u_nwood", 0 if __import__("os").environ.get("TF_NOWOOD") else len(self.opacity.wood))
                 _set(prog, "u_bark", tuple(float(x) for x in self.opacity.bark))
-                wa, wb, wg, nwood = wood_uniforms(self.opacity)
+                wa, wb, wg, nwood = self._wood
                 _set(prog, "u_nwood", nwood)
                 _set(prog, "u_wa", wa.tobytes())
                 _set(prog, "u_wb", wb.tobytes())
