@@ -145,3 +145,23 @@ def test_bad_input(bare, kwargs, err, match):
     args = {"mask": m, "wood": m, **kwargs}
     with pytest.raises(err, match=match):
         wood_skeleton(args.pop("mask"), args.pop("wood"), **args)
+
+
+def test_a_branch_keeps_its_own_way_to_the_trunk():
+    """A limb whose tip touches a lower limb in the image (two limbs crossing in projection).
+
+    The tip's shortest way to the foot runs down the lower limb on a diagonal; the limb itself
+    (up to the trunk, then down it) is longer. With the trunk cheaper up to its first contested
+    fork (the second pass), the tip's path follows its own limb to the trunk.
+    """
+    m = np.zeros((400, 400), np.uint8)
+    cv2.line(m, (200, 390), (200, 60), 1, 9)  # trunk
+    cv2.line(m, (200, 150), (330, 150), 1, 5)  # the upper limb, to the right
+    cv2.line(m, (200, 330), (320, 152), 1, 5)  # a lower limb rising to touch it near its tip
+    m = m.astype(bool)
+    sk = wood_skeleton(m, m, levels=1, crown_tips=False)
+    limb = np.array([[200, 150], [330, 150]])
+    first = [b for b, o in zip(sk.branches, sk.order) if o == 1]
+    hit = [b for b in first if np.mean([_dist(p, limb) for p in b]) < 4.0]
+    assert len(hit) == 1
+    assert np.hypot(*(hit[0][0] - limb[0])) < 10.0 and np.hypot(*(hit[0][-1] - limb[-1])) < 8.0

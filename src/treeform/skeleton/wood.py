@@ -10,7 +10,10 @@ crown where foliage hides the wood) is joined to the base by its least-cost path
 :class:`skimage.graph.MCP_Geometric`). The paths form a tree; it is cut into branches by the
 "longest reach continues" rule: at every fork the child whose subtree reaches farthest carries
 the parent on, the others start branches of the next order. The trunk is the chain from the
-base; first-order branches leave it; and so on for ``levels`` orders.
+base; first-order branches leave it; and so on for ``levels`` orders. The paths are then found
+once more with the trunk made cheaper up to its first contested fork (where two children could
+lead): a tip's path follows its branch to the trunk instead of cutting across the branches it
+crosses in the image on a diagonal to the base.
 
 The result is a :class:`~treeform.skeleton.foliage.Skeleton2D` like the foliage skeleton's
 (``meta["mode"] == "wood"``, no cuts), so drawing, lifting to 3D and the analysis-by-synthesis
@@ -43,6 +46,7 @@ _WOOD_GAIN = 0.5  # step cost along wood: 1 + gain / (0.5 + distance to the wood
 _PROMOTE = 0.04  # sibling rule, fraction of the tree's height: any side chain this near the attachment
 _PROMOTE_BIG = 0.10  # ... and side chains reaching _BIG times as far as the chain goes on, this near
 _BIG = 0.5
+_TRUNK_STEP = 0.5  # second pass: step cost along the trunk below its first contested fork, times this
 
 
 def wood_fraction(mask, wood) -> float:
@@ -175,26 +179,21 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
         tips = np.vstack([tips, _end_points(skeletonize(ndi.binary_fill_holes(crown)))])
     if len(tips):
         tips = tips[np.isfinite(reach_cost[tips[:, 0], tips[:, 1]])]
-    # the path tree: node id per pixel, parent id, arc length from the root
-    node_of = {tuple(root): 0}
-    parent, pix = [-1], [tuple(root)]
-    for r, c in tips:
-        path = mcp.traceback((int(r), int(c)))
-        prev = 0
-        for p in path[1:]:
-            p = tuple(p)
-            k = node_of.get(p)
-            if k is None:
-                k = len(pix)
-                node_of[p] = k
-                pix.append(p)
-                parent.append(prev)
-            prev = k
-    parent = np.asarray(parent, np.int64)
-    pix = np.asarray(pix, np.int64)  # (row, col)
-    chains = _decompose(pix, parent, levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h),
-                        promote=_PROMOTE * tree_h,
-                        promote_big=_PROMOTE_BIG * tree_h)
+    pix, parent = _path_tree(mcp, tuple(root), tips)
+    opts = dict(levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h),
+                promote=_PROMOTE * tree_h, promote_big=_PROMOTE_BIG * tree_h)
+    chains = _decompose(pix, parent, **opts)
+    sure = chains[0]["nodes"][:chains[0]["contested"] + 1]
+    if len(sure) >= 2:
+        # Second pass: the trunk up to its first contested fork costs _TRUNK_STEP as much, so a tip's
+        # path runs to the trunk and down it rather than cutting across the branches it overlaps in
+        # the image on a diagonal to the foot (the branches then leave the trunk where they do).
+        tp = pix[sure]
+        cost[tp[:, 0], tp[:, 1]] *= _TRUNK_STEP
+        mcp = MCP_Geometric(cost, fully_connected=True)
+        mcp.find_costs([tuple(root)])
+        pix, parent = _path_tree(mcp, tuple(root), tips)
+        chains = _decompose(pix, parent, **opts)
 
     def to_full(p):
         return (np.asarray(p, float) + 0.5) / scale - 0.5
@@ -293,6 +292,29 @@ def _end_points(sk: np.ndarray) -> np.ndarray:
     return np.argwhere(sk & (n == 2)).astype(np.int64)
 
 
+def _path_tree(mcp, root: tuple, tips: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least-cost paths from ``tips`` back to ``root`` (``mcp``'s start) as one tree of pixels.
+
+    Returns ``(pix, parent)``: ``(N, 2)`` (row, col) and ``(N,)``; node 0 is the root
+    (``parent[0] == -1``) and every parent is created before its children.
+    """
+    node_of = {root: 0}
+    parent, pix = [-1], [root]
+    for r, c in tips:
+        path = mcp.traceback((int(r), int(c)))
+        prev = 0
+        for p in path[1:]:
+            p = tuple(p)
+            k = node_of.get(p)
+            if k is None:
+                k = len(pix)
+                node_of[p] = k
+                pix.append(p)
+                parent.append(prev)
+            prev = k
+    return np.asarray(pix, np.int64), np.asarray(parent, np.int64)
+
+
 def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: float, look: float,
                promote: float = 0.0, promote_big: float = 0.0) -> list[dict]:
     """Cut a pixel tree into chains: at each fork the straightest far-reaching child continues.
@@ -353,12 +375,15 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
         nodes = [start] if start == 0 else [int(parent[start]), start]
         k = start
         sides = []
+        contested = None
         while children[k]:
             kids = children[k]
             if len(kids) > 1:
                 if o == 0:
                     high = min(top[c] for c in kids)
                     pool = [c for c in kids if top[c] <= high + 2 * look]
+                    if len(pool) > 1 and contested is None:
+                        contested = len(nodes) - 1
                 else:
                     far = max(reach[c] - depth[k] for c in kids)
                     pool = [c for c in kids if reach[c] - depth[k] >= 0.5 * far]
@@ -371,6 +396,8 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
             nodes.append(k)
         idx = len(chains)
         chains.append({"nodes": np.asarray(nodes, np.int64), "order": o, "parent": pc})
+        if o == 0:  # the trunk's first fork where more than one child could lead (its last node if none)
+            chains[-1]["contested"] = len(nodes) - 1 if contested is None else contested
         base = depth[nodes[0]]
         after = dict(zip(nodes[:-1], nodes[1:]))
         for s_ in sorted(sides, key=lambda c: depth[c]):
