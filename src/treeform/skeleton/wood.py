@@ -172,18 +172,18 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
     root = _nearest_pixel(passable, root)
 
     mcp = MCP_Geometric(cost, fully_connected=True)
-    reach_cost, _ = mcp.find_costs([tuple(root)])
+    reach_cost, trace = mcp.find_costs([tuple(root)])
     tips = _end_points(skeletonize(ww))
     if crown_tips:
         crown = cv2.morphologyEx(mw.astype(np.uint8), cv2.MORPH_OPEN, _EIGHT).astype(bool)
         tips = np.vstack([tips, _end_points(skeletonize(ndi.binary_fill_holes(crown)))])
     if len(tips):
         tips = tips[np.isfinite(reach_cost[tips[:, 0], tips[:, 1]])]
-    pix, parent = _path_tree(mcp, tuple(root), tips)
+    pix, parent = _path_tree(trace, np.asarray(mcp.offsets), tuple(root), tips)
     opts = dict(levels=levels, min_len=min_length * tree_h, look=max(4.0, 0.04 * tree_h),
                 promote=_PROMOTE * tree_h, promote_big=_PROMOTE_BIG * tree_h)
-    chains = _decompose(pix, parent, **opts)
-    sure = chains[0]["nodes"][:chains[0]["contested"] + 1]
+    trunk0 = _decompose(pix, parent, **{**opts, "levels": 0})[0]  # the trunk alone
+    sure = trunk0["nodes"][:trunk0["contested"] + 1]
     if len(sure) >= 2:
         # Second pass: the trunk up to its first contested fork costs _TRUNK_STEP as much, so a tip's
         # path runs to the trunk and down it rather than cutting across the branches it overlaps in
@@ -191,9 +191,9 @@ def wood_skeleton(mask, wood, *, trunk=None, levels: int = 2, max_side: int = 40
         tp = pix[sure]
         cost[tp[:, 0], tp[:, 1]] *= _TRUNK_STEP
         mcp = MCP_Geometric(cost, fully_connected=True)
-        mcp.find_costs([tuple(root)])
-        pix, parent = _path_tree(mcp, tuple(root), tips)
-        chains = _decompose(pix, parent, **opts)
+        _, trace = mcp.find_costs([tuple(root)])
+        pix, parent = _path_tree(trace, np.asarray(mcp.offsets), tuple(root), tips)
+    chains = _decompose(pix, parent, **opts)
 
     def to_full(p):
         return (np.asarray(p, float) + 0.5) / scale - 0.5
@@ -292,8 +292,14 @@ def _end_points(sk: np.ndarray) -> np.ndarray:
     return np.argwhere(sk & (n == 2)).astype(np.int64)
 
 
-def _path_tree(mcp, root: tuple, tips: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The least-cost paths from ``tips`` back to ``root`` (``mcp``'s start) as one tree of pixels.
+def _path_tree(trace: np.ndarray, offsets: np.ndarray, root: tuple,
+               tips: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least-cost paths from ``tips`` back to ``root`` as one tree of pixels.
+
+    ``trace`` and ``offsets`` are an :class:`~skimage.graph.MCP` search's from ``root`` alone
+    (``find_costs``' traceback array, ``mcp.offsets``): a pixel was reached from itself minus
+    ``offsets[trace[pixel]]``. Each tip's path is followed back only until it meets a pixel
+    already in the tree, so every pixel is visited once, not once per tip whose path crosses it.
 
     Returns ``(pix, parent)``: ``(N, 2)`` (row, col) and ``(N,)``; node 0 is the root
     (``parent[0] == -1``) and every parent is created before its children.
@@ -301,17 +307,18 @@ def _path_tree(mcp, root: tuple, tips: np.ndarray) -> tuple[np.ndarray, np.ndarr
     node_of = {root: 0}
     parent, pix = [-1], [root]
     for r, c in tips:
-        path = mcp.traceback((int(r), int(c)))
-        prev = 0
-        for p in path[1:]:
-            p = tuple(p)
-            k = node_of.get(p)
-            if k is None:
-                k = len(pix)
-                node_of[p] = k
-                pix.append(p)
-                parent.append(prev)
-            prev = k
+        p = (int(r), int(c))
+        new = []
+        while p not in node_of:
+            new.append(p)
+            d = offsets[trace[p]]
+            p = (p[0] - int(d[0]), p[1] - int(d[1]))
+        prev = node_of[p]
+        for q in reversed(new):
+            node_of[q] = len(pix)
+            pix.append(q)
+            parent.append(prev)
+            prev = node_of[q]
     return np.asarray(pix, np.int64), np.asarray(parent, np.int64)
 
 
@@ -329,7 +336,9 @@ def _decompose(pix: np.ndarray, parent: np.ndarray, *, levels: int, min_len: flo
     reaching at least :data:`_BIG` times as far as the chain goes on from there, is the chain's
     sibling (same order, same parent): two limbs whose stems share pixels in the image. Returns
     the chains breadth first (trunk first), each ``{"nodes", "order", "parent"}`` with
-    ``nodes`` from the attachment (the fork pixel) to the tip; a side chain whose reach from
+    ``nodes`` from the attachment (the fork pixel) to the tip (the trunk's also has
+    ``"contested"``: the index in ``nodes`` of its first fork where more than one child could
+    lead, its last node if none; ``levels=0`` gives the trunk alone); a side chain whose reach from
     its fork is under ``min_len`` pixels is dropped with its subtree.
     """
     n = len(parent)
