@@ -53,6 +53,41 @@ def test_space_colonization_bad_arguments():
                            segment_length=1)
 
 
+def _lateral_angles(res, k0):
+    """Angle (degrees) of each grown lateral's first internode to the stem (+y), and whether it is off the stem."""
+    kids = res.parent[k0:]
+    on_stem = kids < k0
+    d = res.positions[k0:][on_stem] - res.positions[kids[on_stem]]
+    return np.degrees(np.arccos(np.clip(d[:, 1] / np.linalg.norm(d, axis=1), -1, 1)))
+
+
+def test_direction_weight_lets_laterals_leave_at_an_angle_and_bend_toward_their_attractors():
+    # a bare stem up to 4 m with a cloud of attractors square to it, at 1.5-2.5 m to its side:
+    # Runions's rule sends the laterals straight at them (about 90 degrees to the stem); with the
+    # node's own direction weighted 1 they leave at about 45 degrees and still reach the cloud
+    rng = np.random.default_rng(0)
+    att = np.column_stack([rng.uniform(1.5, 2.5, 400), rng.uniform(1.0, 3.0, 400), rng.uniform(-0.5, 0.5, 400)])
+    stem = np.column_stack([np.zeros(41), np.linspace(0.0, 4.0, 41), np.zeros(41)])
+    grow = np.zeros(41, bool)
+    grow[10:31] = True  # laterals only from the stem's middle, beside the cloud
+    kw = dict(influence_radius=3.0, kill_distance=0.25, segment_length=0.1, growable=grow)
+    runions = space_colonization(att, stem, **kw)
+    bent = space_colonization(att, stem, direction_weight=1.0, **kw)
+    a0, a1 = _lateral_angles(runions, 41), _lateral_angles(bent, 41)
+    assert len(a0) and len(a1)
+    assert np.median(a0) > 75
+    assert 35 < np.median(a1) < 60
+    assert bent.attractors_left < 0.05 * len(att)
+    # the bent laterals turn toward the cloud: their tips reach it, square to the stem
+    tips = np.setdiff1d(np.arange(41, len(bent.parent)), bent.parent)
+    assert np.percentile(bent.positions[tips, 0], 90) > 1.5
+    # weight 0 is Runions's rule, to the node
+    same = space_colonization(att, stem, direction_weight=0.0, **kw)
+    assert np.array_equal(same.positions, runions.positions)
+    with pytest.raises(InputError, match="direction_weight"):
+        space_colonization(att, stem, direction_weight=-1.0, **kw)
+
+
 def test_per_attractor_kill_distance():
     # attractors in a band 1 m wide beside a stem: with each one's kill distance reaching the
     # band's far edge, one chain up the band removes them all; with a short one, side shoots

@@ -118,6 +118,17 @@ def test_metrics_report_the_trees_size_as_treeform_metrics_does(run):
     assert of_files["n_leaves"] == metrics["leaves"] == len(res.foliage) > 0
 
 
+def test_branches_leave_their_parents_at_a_trees_angles(run):
+    # Runions's rule alone sent every lateral square to its parent (mean 88 degrees: twigs bristling
+    # off every branch); broadleaf trees branch at 20-50 degrees (the species presets; pine whorls 80)
+    from treeform.metrics import average_branching_angle, branching_angles
+
+    res, _ = run
+    angles, _ = branching_angles(res.skeleton)
+    assert 30 < average_branching_angle(res.skeleton) < 60
+    assert (angles > 80).mean() < 0.25
+
+
 def test_glb_loads_in_trimesh_with_same_counts(run):
     trimesh = pytest.importorskip("trimesh")
     res, out = run

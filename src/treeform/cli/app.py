@@ -172,8 +172,9 @@ def reconstruct(
         None, "--rdm-rotations", metavar="DEG,DEG", help="envelope: extra copies of the envelope turned about the "
                                                          "vertical axis, e.g. 60,120 (the RDM keeps the largest radius)."),
     colonization: Optional[Colonization] = typer.Option(
-        None, "--colonization", help="envelope: space colonization 'coarse' (default: D = 0.04 r) or 'paper' "
-                                     "(full detail: d_k = 0.01 r, D = 0.5 d_k; slower, many more nodes)."),
+        None, "--colonization", help="envelope: space colonization 'coarse' (default: D = 0.04 r, branches "
+                                     "leaving at about 45 degrees) or 'paper' (full detail: d_k = 0.01 r, D = 0.5 d_k, "
+                                     "Runions's rule; slower, many more nodes)."),
     report: bool = typer.Option(False, "--report", help="Also write report.html: pictures, metrics, stage times, "
                                 "the tree in a 3D viewer (opens offline)."),
     impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),

@@ -42,7 +42,7 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
                        *, influence_radius: float, kill_distance: float, segment_length: float,
                        max_iterations: int = 1000, growable: np.ndarray | None = None,
                        perception_angle: float | None = None, initial_direction=(0.0, 1.0, 0.0),
-                       candidates: int = 8, envelope=None) -> SpaceColonizationResult:
+                       candidates: int = 8, envelope=None, direction_weight: float = 0.0) -> SpaceColonizationResult:
     """Grow a branching structure toward attraction points.
 
     Each step, every attractor is associated with its closest tree node within
@@ -81,6 +81,14 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         Anything with ``contains(points) -> bool`` (e.g. a RadialBoundingVolume): proposed
         nodes outside it are not created (seed 003 §4.4: growth stays inside the RBV).
 
+    direction_weight : float
+        Weight of the node's own direction (parent -> node; the root's: ``initial_direction``)
+        added to the unit mean direction toward its attractors (Palubicki et al. 2009's default
+        direction, weight xi against the optimal direction's eta = 1). 0 (default) is Runions's
+        rule, where a lateral leaves along its attractors' direction (about 90 degrees off its
+        parent inside a crown); at 1 a lateral whose attractors lie square to its parent leaves
+        at 45 degrees and turns toward them over the next internodes.
+
     Returns
     -------
     SpaceColonizationResult
@@ -105,6 +113,7 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
             raise InputError(f"kill_distance: expected a positive number or {len(att)} positive numbers "
                              f"(one per attractor)")
     seg = check_positive(segment_length, "segment_length")
+    xi = check_positive(direction_weight, "direction_weight", allow_zero=True)
     k0 = len(start)
     if start_parent is None:
         start_parent = np.arange(-1, k0 - 1)
@@ -187,7 +196,12 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         norm = np.linalg.norm(acc, axis=1)
         ok = norm > 1e-6
         growing, acc, norm = growing[ok], acc[ok], norm[ok]
-        new = pos[growing] + seg * acc / norm[:, None]
+        step = acc / norm[:, None]
+        if xi > 0.0:  # the node's own direction too; where the two cancel, the attractors' alone
+            blend = step + xi * directions(growing)
+            bn = np.linalg.norm(blend, axis=1)
+            step = np.where((bn > 1e-6)[:, None], blend / np.maximum(bn, 1e-12)[:, None], step)
+        new = pos[growing] + seg * step
         if envelope is not None:
             ok = np.asarray(envelope.contains(new), bool)
             growing, new = growing[ok], new[ok]

@@ -12,11 +12,12 @@ from treeform._shared.errors import InputError
 
 
 COLONIZATION_PRESETS = {
-    "coarse": {"segment_length": 0.04, "kill_factor": 2.5},
-    "paper": {"segment_length": 0.005, "kill_factor": 2.0},
+    "coarse": {"segment_length": 0.04, "kill_factor": 2.5, "direction_weight": 1.0},
+    "paper": {"segment_length": 0.005, "kill_factor": 2.0, "direction_weight": 0.0},
 }
-"""Space-colonization regimes: 'coarse' (treeform's default: D = 0.04 r, d_k = 0.1 r) and
-'paper' (seed 001 §3.6 at full detail: d_k = 0.01 r, D = 0.5 d_k), r the mean crown radius."""
+"""Space-colonization regimes: 'coarse' (treeform's default: D = 0.04 r, d_k = 0.1 r, laterals
+leaving at about 45 degrees) and 'paper' (seed 001 §3.6 at full detail: d_k = 0.01 r, D = 0.5 d_k,
+Runions's rule as the paper uses it), r the mean crown radius."""
 
 
 @dataclass
@@ -64,6 +65,11 @@ class EnvelopeConfig:
     """Kill distance d_k = kill_factor x D."""
     influence: float = 0.5
     """Influence radius d_i as a fraction of the mean crown radius."""
+    direction_weight: float = 1.0
+    """Weight of each node's own direction beside the unit direction to its attractors
+    (:func:`~treeform.growth.space_colonization.space_colonization`): at 1 a lateral leaves its
+    parent at about 45 degrees and bends toward its attractors; 0 is Runions's rule (laterals
+    square to their parents, twigs bristling off every branch)."""
     pipe_exponent: float = 2.3
     """Pipe-model exponent e: r_parent^e = sum r_child^e."""
     leaves: int = 8000
@@ -108,6 +114,7 @@ class EnvelopeConfig:
         for name in ("depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent", "leaf_coverage"):
             check_positive(getattr(self, name), name)
         check_positive(self.relief_weight, "relief_weight", allow_zero=True)
+        check_positive(self.direction_weight, "direction_weight", allow_zero=True)
         if not isinstance(self.beyond_frame, bool):
             raise InputError(f"beyond_frame: expected true or false, got {self.beyond_frame!r}")
         if not 0 <= self.shell_leaves <= 1:

@@ -212,7 +212,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         crown_low = float(attractors[:, 1].min()) if len(attractors) else float(trunk[-1, 1])
         growable = (np.linspace(0, 1, n_trunk) >= 0.8) | (trunk[:, 1] >= max(crown_low - seg_len, 0.1 * tree_h))
         sc = space_colonization(attractors, trunk, influence_radius=cfg.influence * r_mean,
-                                kill_distance=cfg.kill_factor * seg_len, segment_length=seg_len, growable=growable)
+                                kill_distance=cfg.kill_factor * seg_len, segment_length=seg_len, growable=growable,
+                                direction_weight=cfg.direction_weight)
         # the photo's trunk width, within what trees grow: a radius of 0.2-6 % of the height
         # (wood around the base -- a fence, a bush labelled wood -- reads far too wide)
         trunk_radius = float(np.clip(layout.trunk_width * mpp / 2, max(0.002 * tree_h, 0.02), 0.06 * tree_h))

@@ -43,6 +43,9 @@ class MultiviewConfig:
     """Carving cell on the crown's surface (where the leaves go) = tree height / surface_cells."""
     tolerance: float = 0.25
     """Share of the views whose mask may miss a piece of the tree (occluders, segmentation errors)."""
+    direction_weight: float = 1.0
+    """The hidden branches' growth: weight of each node's own direction beside the direction to its
+    attractors (:func:`~treeform.growth.space_colonization.space_colonization`; 0: Runions's rule)."""
     leaves: int = 15000
     """Leaf clusters (most on the crown's surface seen in the photos, the rest on the twigs inside)."""
     leaf_texture: str = "photo"
@@ -73,6 +76,7 @@ class MultiviewConfig:
         check_int(self.surface_cells, "surface_cells", 10, 2000)
         if not 0.0 <= float(self.tolerance) < 0.5:
             raise InputError(f"tolerance: expected a share in [0, 0.5), got {self.tolerance!r}")
+        check_positive(self.direction_weight, "direction_weight", allow_zero=True)
         check_int(self.leaves, "leaves", 0, 1_000_000)
         check_choice(self.leaf_texture, "leaf_texture", LEAF_TEXTURES)
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))

@@ -475,7 +475,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         if len(att):
             res = space_colonization(att, start_pos, start_par, influence_radius=0.2 * height,
                                      kill_distance=0.035 * height, segment_length=0.015 * height,
-                                     max_iterations=400)
+                                     max_iterations=400, direction_weight=cfg.direction_weight)
             pos, par = res.positions, res.parent
         else:
             pos, par = start_pos, start_par
