@@ -33,14 +33,12 @@ def _bark_views(mesh, size: int = 640) -> list[np.ndarray]:
     from treeform.structures.mesh import Mesh
 
     bark = Mesh([p for p in mesh.parts if p.name == "bark"])
-    lo, hi = bark.bounds()
+    lo, hi = (np.asarray(b, float) for b in bark.bounds())
+    cams = [box_camera(lo, hi, az, 0.0, size) for az in (0.0, 90.0)]
+    renderer = Renderer(cams[0], samples=8)
     out = []
-    renderer = None
     try:
-        for az in (0.0, 90.0):
-            cam = box_camera(np.asarray(lo, float), np.asarray(hi, float), az, 0.0, size)
-            if renderer is None:
-                renderer = Renderer(cam, samples=8)
+        for cam in cams:
             renderer.camera = cam
             res = renderer.render(bark)
             rgba = res.color.astype(np.float32)
@@ -50,8 +48,7 @@ def _bark_views(mesh, size: int = 640) -> list[np.ndarray]:
             m = size // 40  # the tree's box and a margin
             out.append(img[max(rows[0] - m, 0):rows[-1] + m + 1, max(cols[0] - m, 0):cols[-1] + m + 1])
     finally:
-        if renderer is not None:
-            renderer.release()
+        renderer.release()
     return out
 
 

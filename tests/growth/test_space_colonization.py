@@ -54,7 +54,7 @@ def test_space_colonization_bad_arguments():
 
 
 def _lateral_angles(res, k0):
-    """Angle (degrees) of each grown lateral's first internode to the stem (+y), and whether it is off the stem."""
+    """Angle (degrees) to the stem (+y) of the first internode of each lateral grown off the K0 stem nodes."""
     kids = res.parent[k0:]
     on_stem = kids < k0
     d = res.positions[k0:][on_stem] - res.positions[kids[on_stem]]

@@ -80,7 +80,6 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
     envelope : object, optional
         Anything with ``contains(points) -> bool`` (e.g. a RadialBoundingVolume): proposed
         nodes outside it are not created (seed 003 §4.4: growth stays inside the RBV).
-
     direction_weight : float
         Weight of the node's own direction (parent -> node; the root's: ``initial_direction``)
         added to the unit mean direction toward its attractors (Palubicki et al. 2009's default
@@ -200,7 +199,7 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         if xi > 0.0:  # the node's own direction too; where the two cancel, the attractors' alone
             blend = step + xi * directions(growing)
             bn = np.linalg.norm(blend, axis=1)
-            step = np.where((bn > 1e-6)[:, None], blend / np.maximum(bn, 1e-12)[:, None], step)
+            step = np.where((bn > 1e-6)[:, None], blend / np.where(bn > 1e-6, bn, 1.0)[:, None], step)
         new = pos[growing] + seg * step
         if envelope is not None:
             ok = np.asarray(envelope.contains(new), bool)
