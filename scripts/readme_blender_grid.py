@@ -1,8 +1,8 @@
 """Make the README's ``docs/images/blender_grid.jpg``: eight real photos and their trees rendered in Blender.
 
 Each photo of ``../shared/data/photos`` is reconstructed (``treeform reconstruct``, envelope
-method, seed 0; conifers with ``--crown conical``), the GLB opened by Blender's glTF importer
-and rendered with Cycles (``scripts/blender_view.py``) from the front, the right side and
+method, seed 0; the two conifers with ``--form conifer``, the rest ``--form auto``), the GLB
+opened by Blender's glTF importer and rendered with Cycles (``scripts/blender_view.py``) from the front, the right side and
 three-quarter above. Rows: photo | front | side | 3/4. Needs ``make blender`` (bpy in
 ``.venv-blender``). Credits for the photos: docs/images/CREDITS.md.
 
@@ -21,9 +21,9 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 ROOT = Path(__file__).resolve().parents[1]
-PHOTOS = {"Celtis_occidentalis_1.jpg": "round", "Quercus_alba_1.jpg": "round", "Catalpa_speciosa_1.jpg": "round",
-          "Acer_rubrum_2.jpg": "round", "Fagus_grandifolia_2.jpg": "round", "Juglans_nigra_1.jpg": "round",
-          "Thuja_plicata_1.jpg": "conical", "Pinus_ponderosa_2.jpg": "conical"}
+PHOTOS = {"Celtis_occidentalis_1.jpg": "auto", "Quercus_alba_1.jpg": "auto", "Catalpa_speciosa_1.jpg": "auto",
+          "Acer_rubrum_2.jpg": "auto", "Fagus_grandifolia_2.jpg": "auto", "Juglans_nigra_1.jpg": "auto",
+          "Thuja_plicata_1.jpg": "conifer", "Pinus_ponderosa_2.jpg": "conifer"}
 VIEWS = ("front", "side", "three_quarter")
 LABELS = ("photo", "front (Blender, Cycles)", "side", "three-quarter")
 BG = np.array([242, 243, 240], np.float32)
@@ -52,9 +52,9 @@ def main(argv=None) -> None:
     rows, starts = [], None
     font = ImageFont.load_default(size=max(12, args.size // 18))
     with tempfile.TemporaryDirectory() as tmp:
-        for name, crown in PHOTOS.items():
+        for name, form in PHOTOS.items():
             d = Path(tmp) / Path(name).stem
-            res = reconstruct(args.data / name, out=d, crown=crown, seed=0)
+            res = reconstruct(args.data / name, out=d, form=form, seed=0)
             facts = d / "blender.json"
             subprocess.run([args.blender_python, str(ROOT / "scripts" / "blender_view.py"), str(d / "tree.glb"),
                             "--json", str(facts), "--render", str(d / "blender"), "--views", ",".join(VIEWS),

@@ -2,7 +2,8 @@
 
 Each row is the ``preview.png`` that ``treeform reconstruct`` writes (photo | segmentation |
 front | side | top), scaled to one width, stacked. Photos from ``../shared/data/photos``
-(credits in ``docs/images/CREDITS.md``); conifers with ``--crown conical``.
+(credits in ``docs/images/CREDITS.md``); the two conifers with ``--form conifer``, the rest
+``--form auto``.
 
     python scripts/readme_previews.py [--data ../shared/data/photos] [--out docs/images/previews.jpg]
 """
@@ -17,8 +18,8 @@ import numpy as np
 from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[1]
-PHOTOS = {"Celtis_occidentalis_1.jpg": "round", "Quercus_alba_1.jpg": "round", "Thuja_plicata_1.jpg": "conical",
-          "Pinus_ponderosa_2.jpg": "conical", "Catalpa_speciosa_1.jpg": "round"}
+PHOTOS = {"Celtis_occidentalis_1.jpg": "auto", "Quercus_alba_1.jpg": "auto", "Thuja_plicata_1.jpg": "conifer",
+          "Pinus_ponderosa_2.jpg": "conifer", "Catalpa_speciosa_1.jpg": "auto"}
 
 
 def main(argv=None) -> None:
@@ -31,8 +32,8 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for name, crown in PHOTOS.items():
-            res = reconstruct(args.data / name, out=Path(tmp) / name, crown=crown, seed=0)
+        for name, form in PHOTOS.items():
+            res = reconstruct(args.data / name, out=Path(tmp) / name, form=form, seed=0)
             im = Image.open(Path(tmp) / name / "preview.png").convert("RGB")
             h = round(im.height * args.width / im.width)
             rows.append(np.asarray(im.resize((args.width, h), Image.Resampling.LANCZOS)))

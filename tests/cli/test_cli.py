@@ -147,17 +147,18 @@ def test_leaf_texture_option(tmp_path):
 def test_envelope_options_of_the_paper(tmp_path):
     out = tmp_path / "k"
     proc = cli("reconstruct", SAMPLE, "--out", out, "--leaves", "1000", "--lod", "low", "--k", "4",
-               "--profile", "thin-plate", "--rdm-rotations", "60,120", "--depth-ratio", "0.8")
+               "--profile", "thin-plate", "--rdm-rotations", "60,120", "--depth-ratio", "0.8", "--form", "conifer")
     assert proc.returncode == 0, proc.stderr
     cfg = json.loads((out / "config.json").read_text())["config"]
     assert cfg["tangent_k"] == 4 and cfg["profile"] == "thin-plate" and cfg["rdm_rotations"] == [60, 120]
+    assert cfg["form"] == "conifer" and json.loads((out / "metrics.json").read_text())["form"] == "conifer"
     assert cfg["depth_ratio"] == 0.8 and cfg["segment_length"] == 0.04
     bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "b", "--rdm-rotations", "sixty")
     assert_clean_failure(bad, tmp_path / "b")
     both = cli("reconstruct", SAMPLE, "--out", tmp_path / "m", "--method", "learned", "--k", "3", "--profile",
-               "rounded")
+               "rounded", "--form", "broadleaf")
     assert_clean_failure(both, tmp_path / "m")
-    assert "--profile, --k work with --method envelope" in both.stderr
+    assert "--profile, --k, --form work with --method envelope" in both.stderr
 
 
 def test_help_speaks_to_users():

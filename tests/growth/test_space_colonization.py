@@ -210,3 +210,24 @@ def test_compiled_close_pair_drops_follow_the_closest_pairs_rule():
         budget -= 1
     np.testing.assert_array_equal(drop, ref)
     assert drop.sum() == 7
+
+
+def test_start_direction_weight_sends_laterals_off_a_leader_at_a_conifers_angle():
+    # a conifer's laterals leave its leader almost square to it (the pine preset's 80 degrees)
+    # while their own side shoots keep the default's 45: the weight of the start nodes (the
+    # leader) is set apart from the grown nodes'
+    rng = np.random.default_rng(0)
+    att = np.column_stack([rng.uniform(1.5, 2.5, 400), rng.uniform(1.0, 3.0, 400), rng.uniform(-0.5, 0.5, 400)])
+    stem = np.column_stack([np.zeros(41), np.linspace(0.0, 4.0, 41), np.zeros(41)])
+    grow = np.zeros(41, bool)
+    grow[10:31] = True
+    kw = dict(influence_radius=3.0, kill_distance=0.25, segment_length=0.1, growable=grow, direction_weight=1.0)
+    leader = space_colonization(att, stem, start_direction_weight=0.176, **kw)
+    both = space_colonization(att, stem, **kw)
+    a_leader, a_both = _lateral_angles(leader, 41), _lateral_angles(both, 41)
+    assert 70 < np.median(a_leader) < 88 and 35 < np.median(a_both) < 60
+    assert leader.attractors_left < 0.05 * len(att)
+    # unset, the start nodes take the grown nodes' weight
+    assert np.array_equal(space_colonization(att, stem, start_direction_weight=1.0, **kw).positions, both.positions)
+    with pytest.raises(InputError, match="start_direction_weight"):
+        space_colonization(att, stem, start_direction_weight=-0.5, **kw)

@@ -57,6 +57,15 @@ def test_configs_check_the_new_options():
     assert EnvelopeConfig(crown="conical").validate().foliage_kind() == "needles"
     assert EnvelopeConfig(crown="round").validate().foliage_kind() == "broadleaf"
     assert EnvelopeConfig(crown="conical", foliage="scales").validate().foliage_kind() == "scales"
+    # the growth form: a conifer (given, or found by reconstruct) wears needles on a conical envelope
+    auto = EnvelopeConfig().validate()
+    assert auto.form == "auto" and auto.crown == "auto"
+    assert auto.foliage_kind("conifer") == "needles" and auto.foliage_kind("broadleaf") == "broadleaf"
+    assert auto.crown_for("conifer") == "conical" and auto.crown_for("broadleaf") == "round"
+    assert EnvelopeConfig(form="conifer", crown="round").validate().crown_for("conifer") == "round"
+    assert EnvelopeConfig(form="conifer", foliage="scales").validate().foliage_kind() == "scales"
+    with pytest.raises(InputError, match="form"):
+        EnvelopeConfig(form="palm").validate()
     for cls in (EnvelopeConfig, GrowConfig, LearnedConfig):
         with pytest.raises(InputError, match="foliage"):
             cls(foliage="ferns").validate()

@@ -46,7 +46,8 @@ def _choices(name: str, *values: str) -> type:
     return Enum(name, [(v, v) for v in values], type=str)
 
 
-Crown = _choices("Crown", "round", "conical")
+Crown = _choices("Crown", "auto", "round", "conical")
+Form = _choices("Form", "auto", "broadleaf", "conifer")
 SegmenterName = _choices("SegmenterName", "learned", "classical")
 FeetSource = _choices("FeetSource", "rules", "learned", "both")
 SEGMENTER_OPTION = typer.Option(SegmenterName(DEFAULT_SEGMENTER), "--segmenter",
@@ -141,7 +142,12 @@ def reconstruct(
                                           help="learned, abs: grow this species instead of the predicted one."),
     candidates: Optional[int] = typer.Option(None, "--candidates", min=1, max=10000,
                                              help="abs: models generated and scored by reprojection (default 24)."),
-    crown: Crown = typer.Option(Crown.round, "--crown", help="envelope: crown envelope shape."),
+    crown: Crown = typer.Option(Crown.auto, "--crown", help="envelope: crown envelope shape (auto: conical for a "
+                                                             "conifer --form, else round)."),
+    form: Form = typer.Option(Form.auto, "--form", help="envelope: growth form: broadleaf (trunk splits into limbs "
+                                                       "where the crown begins), conifer (one leader to the top, "
+                                                       "laterals at 80 degrees, needles) or auto (from the "
+                                                       "silhouette)."),
     leaves: Optional[int] = typer.Option(None, "--leaves",
                                          help="Number of leaf clusters (envelope default 8000; learned: per twig; "
                                               "abs: a cap on what the L-system grows)."),
@@ -154,7 +160,8 @@ def reconstruct(
                                   f"default {DEFAULT_SEGMENTER}."),
     foliage: FoliageKind = typer.Option(FoliageKind.auto, "--foliage",
                                         help="Leaf cards: broadleaf, needles (pine) or scales (thuja); auto: "
-                                             "envelope needles for --crown conical, learned the species'."),
+                                             "envelope needles for a conifer --form or --crown conical, learned "
+                                             "the species'."),
     texture_size: Optional[int] = typer.Option(None, "--texture-size", min=16, max=8192, help=TEXTURE_SIZE_HELP),
     leaf_texture: Optional[LeafTexture] = typer.Option(
         None, "--leaf-texture", help="envelope, abs, learned: leaf cards wear the photo's own crown ('photo', "
@@ -205,7 +212,8 @@ def reconstruct(
         raise typer.Exit(2)
 
     envelope_only = {"--leaf-texture": leaf_texture, "--profile": profile, "--k": k, "--depth-ratio": depth_ratio,
-                     "--rdm-rotations": rdm_rotations, "--colonization": colonization}
+                     "--rdm-rotations": rdm_rotations, "--colonization": colonization,
+                     "--form": None if form is Form.auto else form}
     given = [name for name, v in envelope_only.items() if v is not None]
     if candidates is not None and method is not Method.abs:
         typer.echo("error: --candidates works with --method abs", err=True)
@@ -254,7 +262,7 @@ def reconstruct(
             extra["depth_ratio"] = depth_ratio
         if profile is not None:
             extra["profile"] = profile.value
-        kw = dict(crown=crown.value, leaves=8000 if leaves is None else leaves, lod=lod.value,
+        kw = dict(crown=crown.value, form=form.value, leaves=8000 if leaves is None else leaves, lod=lod.value,
                   tree_height=10.0 if height is None else height,
                   segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, foliage=foliage.value,
                   texture_size=texture_size, leaf_texture=(leaf_texture or LeafTexture.photo).value, **extra)

@@ -42,7 +42,8 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
                        *, influence_radius: float, kill_distance: float, segment_length: float,
                        max_iterations: int = 1000, growable: np.ndarray | None = None,
                        perception_angle: float | None = None, initial_direction=(0.0, 1.0, 0.0),
-                       candidates: int = 8, envelope=None, direction_weight: float = 0.0) -> SpaceColonizationResult:
+                       candidates: int = 8, envelope=None, direction_weight: float = 0.0,
+                       start_direction_weight: float | None = None) -> SpaceColonizationResult:
     """Grow a branching structure toward attraction points.
 
     Each step, every attractor is associated with its closest tree node within
@@ -86,7 +87,11 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         direction, weight xi against the optimal direction's eta = 1). 0 (default) is Runions's
         rule, where a lateral leaves along its attractors' direction (about 90 degrees off its
         parent inside a crown); at 1 a lateral whose attractors lie square to its parent leaves
-        at 45 degrees and turns toward them over the next internodes.
+        at 45 degrees and turns toward them over the next internodes; at w, at about atan(1 / w).
+    start_direction_weight : float, optional
+        The weight where a start node grows (a lateral leaving the given trunk or leader; a
+        conifer's leave it at 70-90 degrees, their own side shoots at less); ``None``: as
+        ``direction_weight``.
 
     Returns
     -------
@@ -113,6 +118,8 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
                              f"(one per attractor)")
     seg = check_positive(segment_length, "segment_length")
     xi = check_positive(direction_weight, "direction_weight", allow_zero=True)
+    xi0 = xi if start_direction_weight is None else check_positive(start_direction_weight, "start_direction_weight",
+                                                                   allow_zero=True)
     k0 = len(start)
     if start_parent is None:
         start_parent = np.arange(-1, k0 - 1)
@@ -196,8 +203,9 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         ok = norm > 1e-6
         growing, acc, norm = growing[ok], acc[ok], norm[ok]
         step = acc / norm[:, None]
-        if xi > 0.0:  # the node's own direction too; where the two cancel, the attractors' alone
-            blend = step + xi * directions(growing)
+        if xi > 0.0 or xi0 > 0.0:  # the node's own direction too; where the two cancel, the attractors' alone
+            w = np.where(growing < k0, xi0, xi)[:, None]
+            blend = step + w * directions(growing)
             bn = np.linalg.norm(blend, axis=1)
             step = np.where((bn > 1e-6)[:, None], blend / np.where(bn > 1e-6, bn, 1.0)[:, None], step)
         new = pos[growing] + seg * step

@@ -19,6 +19,11 @@ COLONIZATION_PRESETS = {
 leaving at about 45 degrees) and 'paper' (seed 001 §3.6 at full detail: d_k = 0.01 r, D = 0.5 d_k,
 Runions's rule as the paper uses it), r the mean crown radius."""
 
+FORM_SPECIES = {"broadleaf": None, "conifer": "pine"}
+"""The growth preset (``treeform/growth/species``) whose ``branching_angle_mean`` sets the angle
+at which a growth form's laterals leave its trunk or leader (:func:`leader_direction_weight`);
+``None``: as every other branch (``direction_weight``)."""
+
 
 @dataclass
 class EnvelopeConfig:
@@ -34,8 +39,9 @@ class EnvelopeConfig:
     """Tree segmentation: 'learned' (the network, default) or 'classical' (colour rules + graph cut)."""
     fov_y: float = 40.0
     """Vertical field of view of the photo's camera in degrees."""
-    crown: str = "round"
-    """Envelope tangent function (§3.2): 'round' (f = k) or 'conical' (f = a·y² + 1)."""
+    crown: str = "auto"
+    """Envelope tangent function (§3.2): 'round' (f = k) or 'conical' (f = a·y² + 1, and a side
+    as wide as the front at each height); 'auto': conical for a conifer (``form``), else round."""
     tangent_k: float | None = None
     """Silhouette tangent length k (about 6 inflates a disc into a sphere); None = automatic:
     the k that makes the envelope ``depth_ratio`` times as deep as it is wide."""
@@ -68,8 +74,15 @@ class EnvelopeConfig:
     direction_weight: float = 1.0
     """Weight of each node's own direction beside the unit direction to its attractors
     (:func:`~treeform.growth.space_colonization.space_colonization`): at 1 a lateral leaves its
-    parent at about 45 degrees and bends toward its attractors; 0 is Runions's rule (laterals
-    square to their parents, twigs bristling off every branch)."""
+    parent at about 45 degrees and bends toward its attractors, at w at about atan(1 / w); 0 is
+    Runions's rule (laterals square to their parents, twigs bristling off every branch). A
+    conifer's laterals leave its leader at its own angle (:func:`leader_direction_weight`)."""
+    form: str = "auto"
+    """Growth form: 'broadleaf' (the trunk splits into scaffold limbs where the crown begins),
+    'conifer' (one leader up to the crown's top, laterals leaving it all along the crown at a
+    conifer's angle; needle cards with ``foliage='auto'``) or 'auto': read from the tree's
+    silhouette (:func:`treeform.methods.variations.form.classify_form`: a narrow cone or column
+    down to near the ground is a conifer)."""
     pipe_exponent: float = 2.3
     """Pipe-model exponent e: r_parent^e = sum r_child^e."""
     leaves: int = 8000
@@ -100,12 +113,13 @@ class EnvelopeConfig:
     """Height in pixels of the side and top preview renders."""
 
     def validate(self) -> "EnvelopeConfig":
-        check_choice(self.crown, "crown", ("round", "conical"))
+        check_choice(self.crown, "crown", ("auto", "round", "conical"))
         check_choice(self.lod, "lod", ("low", "medium", "high", "full"))
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         check_choice(self.foliage, "foliage", ("auto", "broadleaf", "needles", "scales"))
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
         check_choice(self.profile, "profile", ("rounded", "thin-plate"))
+        check_choice(self.form, "form", ("auto", "broadleaf", "conifer"))
         if self.texture_size is not None:
             check_int(self.texture_size, "texture_size", 16, 8192)
         if self.tangent_k is not None:
@@ -129,11 +143,16 @@ class EnvelopeConfig:
             raise InputError(f"fov_y: expected 5..120 degrees, got {self.fov_y}")
         return self
 
-    def foliage_kind(self) -> str:
-        """The foliage kind the leaf cards show ('auto' resolved by the crown shape)."""
+    def foliage_kind(self, form: str | None = None) -> str:
+        """The foliage kind the leaf cards show ('auto': needles for a conical crown or a conifer
+        ``form``, the growth form :func:`~treeform.methods.envelope.pipeline.reconstruct` found)."""
         if self.foliage != "auto":
             return self.foliage
-        return "needles" if self.crown == "conical" else "broadleaf"
+        return "needles" if self.crown == "conical" or (form or self.form) == "conifer" else "broadleaf"
+
+    def crown_for(self, form: str) -> str:
+        """The envelope's tangent function for a growth form (``crown`` if set)."""
+        return self.crown if self.crown != "auto" else ("conical" if form == "conifer" else "round")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -146,3 +165,29 @@ class EnvelopeConfig:
         if "rdm_rotations" in d:
             d["rdm_rotations"] = tuple(d["rdm_rotations"])
         return cls(**d).validate()
+
+
+def leader_direction_weight(form: str) -> float | None:
+    """Direction weight w of the laterals leaving a growth form's trunk or leader: 1 / tan(a).
+
+    A lateral's first step is the unit direction toward its attractors (square to its parent
+    inside a crown) plus w times its parent's direction, so it leaves at atan(1 / w); a is the
+    ``branching_angle_mean`` of the form's growth preset (:data:`FORM_SPECIES`). ``None`` for a
+    broadleaf (its limbs leave the trunk as every other branch does).
+
+    Examples
+    --------
+    >>> leader_direction_weight("broadleaf") is None
+    True
+    >>> round(leader_direction_weight("conifer"), 3)  # the pine preset's 80 degrees
+    0.176
+    """
+    check_choice(form, "form", tuple(FORM_SPECIES))
+    name = FORM_SPECIES[form]
+    if name is None:
+        return None
+    import math
+
+    from treeform.growth.species import load_species
+
+    return 1.0 / math.tan(math.radians(float(load_species(name).branching_angle_mean)))

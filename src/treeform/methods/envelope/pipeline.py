@@ -20,7 +20,7 @@ from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
 from treeform.io.outputs import check_out_dir, start_tree_outputs, write_json
 from treeform.methods._single_photo import load_photo, photo_camera, render_previews, segment_or_mask
-from treeform.methods.envelope.config import EnvelopeConfig
+from treeform.methods.envelope.config import EnvelopeConfig, leader_direction_weight
 from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap, Segmentation, TreeSkeleton
 
 OUTPUT_FILES = ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png",
@@ -71,6 +71,39 @@ def _trunk_nodes_along(pts: np.ndarray, seg_len: float) -> np.ndarray:
         return np.stack([np.zeros(3), np.array([0.0, seg_len, 0.0])])
     t = np.linspace(0, s[-1], max(2, int(s[-1] / seg_len) + 1))
     return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
+
+
+def tree_form(tree_mask: np.ndarray) -> str:
+    """Growth form, 'broadleaf' or 'conifer', of the tree in a photo's (H, W) tree mask.
+
+    The silhouette rule of :func:`treeform.methods.variations.form.classify_form` (chosen on
+    the billboard library's cut-outs: a narrow cone or column reaching down to near the ground
+    is a conifer); a palm is grown as a broadleaf.
+    """
+    from treeform.methods.variations.form import classify_form
+
+    rgba = np.zeros(tree_mask.shape + (4,), np.uint8)
+    rgba[np.asarray(tree_mask, bool), 3] = 255
+    form = classify_form(rgba)
+    return form if form == "conifer" else "broadleaf"
+
+
+def conifer_leader(trunk: np.ndarray, attractors: np.ndarray, seg_len: float) -> np.ndarray:
+    """The trunk (K, 3) continued as a conifer's leader: straight on to just under the crown's top.
+
+    The leader ends at the 97th percentile of the attractors' heights (its tip grows on into the
+    topmost ones), under the median column of the topmost 3 % (the apex) and at the crown's median
+    depth (the photo cannot show the apex's depth); nodes every ``seg_len``.
+    """
+    if len(attractors) < 10:
+        return trunk
+    y = attractors[:, 1]
+    y_top = float(np.percentile(y, 97))
+    if y_top <= trunk[-1, 1] + 2 * seg_len:
+        return trunk
+    apex = attractors[y >= y_top]
+    top = np.array([np.median(apex[:, 0]), y_top, np.median(attractors[:, 2])])
+    return _trunk_nodes_along(np.concatenate([trunk, top[None]]), seg_len)
 
 
 _KERNELS = {  # the compiled kernels this route calls from Python (their callees compile into them)
@@ -143,6 +176,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         cam, mpp = photo_camera(width, height, dataclasses.replace(layout, top_row=top_row), cfg.tree_height,
                                 cfg.fov_y)
 
+        form = cfg.form if cfg.form != "auto" else tree_form(seg.tree_mask)
+
         def on_canvas(frame_mask):
             """A mask of the photo on the continued crown's canvas, the continued crown around it."""
             out = crown_full.copy()
@@ -151,7 +186,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
     with timer.stage("envelope"):
         from treeform.crown.envelope import inflate_envelope
 
-        env = inflate_envelope(crown_full, crown=cfg.crown, k=cfg.tangent_k, a=cfg.conical_a,
+        env = inflate_envelope(crown_full, crown=cfg.crown_for(form), k=cfg.tangent_k, a=cfg.conical_a,
                                grid_size=cfg.envelope_grid, depth_ratio=cfg.depth_ratio,
                                profile=cfg.profile)
         env_uvz = env.vertices - np.array([pleft, ptop, 0.0])  # the photo's pixels (past its edges too)
@@ -204,16 +239,19 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         if trunk[-1, 1] < 0.1 * tree_h:  # no visible trunk (hidden by shrubs): a straight one to the crown
             top = max(0.15 * tree_h, float(np.percentile(attractors[:, 1], 5)) if len(attractors) else 0.0)
             trunk = _trunk_nodes_along(np.array([[0.0, 0.0, 0.0], [0.0, top, 0.0]]), seg_len)
-        n_trunk = len(trunk)
         # one stem at the ground: no branch wood in the lowest tenth (leaves may hang there);
         # the trunk sprouts from its top fifth and wherever the crown reaches down beside it,
         # so low crown parts get short limbs off the trunk instead of strands growing down along it
         attractors = attractors[attractors[:, 1] >= 0.1 * tree_h]
+        if form == "conifer":  # one leader through the crown, laterals off it all the way up
+            trunk = conifer_leader(trunk, attractors, seg_len)
+        n_trunk = len(trunk)
         crown_low = float(attractors[:, 1].min()) if len(attractors) else float(trunk[-1, 1])
         growable = (np.linspace(0, 1, n_trunk) >= 0.8) | (trunk[:, 1] >= max(crown_low - seg_len, 0.1 * tree_h))
         sc = space_colonization(attractors, trunk, influence_radius=cfg.influence * r_mean,
                                 kill_distance=cfg.kill_factor * seg_len, segment_length=seg_len, growable=growable,
-                                direction_weight=cfg.direction_weight)
+                                direction_weight=cfg.direction_weight,
+                                start_direction_weight=leader_direction_weight(form))
         # the photo's trunk width, within what trees grow: a radius of 0.2-6 % of the height
         # (wood around the base -- a fence, a bush labelled wood -- reads far too wide)
         trunk_radius = float(np.clip(layout.trunk_width * mpp / 2, max(0.002 * tree_h, 0.02), 0.06 * tree_h))
@@ -223,7 +261,8 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         radius *= trunk_radius / radius[0]
         skeleton = TreeSkeleton(sc.positions, sc.parent, radius, branch_orders(sc.parent, radius),
                                 sc.iteration.astype(np.float64),
-                                meta={"method": "envelope", "seed": cfg.seed, "source": Path(ph.source).name})
+                                meta={"method": "envelope", "seed": cfg.seed, "source": Path(ph.source).name,
+                                      "form": form})
     with timer.stage("leaves"):
         from treeform.crown.layout import trunk_pixels
         from treeform.crown.sampling import rdm_front_height, sample_crown_columns, sample_rdm_shell
@@ -238,7 +277,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         # needle and scale textures cover less, so their cards are larger)
         from treeform.geometry import CLUSTER_COVERAGE, foliage_coverage
 
-        texture_cover = 0.33 * foliage_coverage(cfg.foliage_kind(), seed=cfg.seed) / CLUSTER_COVERAGE
+        texture_cover = 0.33 * foliage_coverage(cfg.foliage_kind(form), seed=cfg.seed) / CLUSTER_COVERAGE
         size = math.sqrt(cfg.leaf_coverage * area / max(cfg.leaves - n_shell, 1) / texture_cover) if cfg.leaves else 0.1
         # procedural card centres stay a third of a card inside the silhouette so cards do not
         # overhang it (photo-textured cards are cut by the photo's own alpha: no inset needed)
@@ -286,7 +325,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
         from treeform.geometry.textures import bark_normals, tint_texture
 
-        bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=cfg.foliage_kind(),
+        bark_tex, leaf_tex = tree_textures(skeleton, foliage, foliage_kind=cfg.foliage_kind(form),
                                            texture_size=cfg.texture_size, seed=cfg.seed)
         bark_normal = bark_normals(bark_tex, seed=cfg.seed)
         if seg.wood_mask.sum() > 20:  # the bark takes the colour of the photo's wood (brighter too)
@@ -302,7 +341,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             white = foliage.with_colors(np.ones((len(foliage), 3)))
             leaf_tex, foliage = photo_leaf_atlas(white, cam, image, alpha, visible=visible,
                                                  shade=np.where(visible, 1.0, shade), seed=cfg.seed,
-                                                 kind=foliage_texture_kind(cfg.foliage_kind()))
+                                                 kind=foliage_texture_kind(cfg.foliage_kind(form)))
         mesh = tree_mesh(skeleton, foliage, max_triangles=LOD_PRESETS[cfg.lod],
                          radial_segments=cfg.radial_segments, leaf_texture=leaf_tex, bark_texture=bark_tex,
                          bark_normal=bark_normal, seed=cfg.seed)
@@ -322,6 +361,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
             window = photo_window(renders["front"].camera, cam)  # the photo's frame in the widened front view
             metrics = {
                 **photo_metrics(renders, cam, image, seg.tree_mask),
+                "form": form,
                 "attractors": int(len(attractors)),
                 "attractors_left": sc.attractors_left,
                 **model_metrics(skeleton, foliage, mesh, photo_size=(width, height), metres_per_pixel=mpp),
