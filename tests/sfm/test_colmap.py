@@ -221,3 +221,32 @@ def test_of_the_mapper_runs_the_most_photos_then_the_lowest_reprojection_error_w
     assert _better(run(12, 0.26), run(12, 0.42)) and not _better(run(12, 0.42), run(12, 0.26))
     assert not _better(run(12, 0.3), run(12, 0.3))  # a tie keeps the earlier run (the seed's own)
     assert _better(run(3, 0.5), None) and not _better(None, run(3, 0.5))
+
+
+def test_mapper_runs_at_once_give_the_models_of_runs_one_after_another(tmp_path, capture, colmap):
+    # the extra mapper runs go two at a time (each seeded in its own thread): the same models as
+    # one after another -- the same photos, points and poses, run for run
+    from treeform.sfm.colmap import _map_runs
+
+    work = tmp_path / "sfm"
+    run_sfm(load_photos(capture[0]), workdir=work, seed=0)
+    db, images = str(work / "database.db"), work / "images"
+    jobs = [("a", 1, False), ("b", 2, False), ("c", 0, True)]
+
+    def models(recs):
+        out = {}
+        for k, rec in recs.items():
+            poses = sorted((rec.images[i].name, tuple(rec.images[i].cam_from_world().translation))
+                           for i in rec.reg_image_ids())
+            pts = np.array(sorted(tuple(p.xyz) for p in rec.points3D.values()))
+            out[k] = (poses, pts)
+        return out
+
+    one, two = (_map_runs(db, images, tmp_path / name, jobs, threads) for name, threads in (("one", 1), ("two", 2)))
+    assert len(one) == len(two) == 3 and any(len(r) for r in one)
+    for a, b in zip(one, two):
+        ma, mb = models(a), models(b)
+        assert ma.keys() == mb.keys()
+        for k in ma:
+            assert ma[k][0] == mb[k][0]
+            np.testing.assert_array_equal(ma[k][1], mb[k][1])

@@ -24,9 +24,9 @@ seconds)``:
 
 Determinism: the photos are imported before the (threaded) SIFT extraction so their ids do not
 depend on which thread finishes first; RANSAC of the two-view verification and the mapper are
-seeded with ``seed``; the pairs and the retrieval vocabulary are deterministic; the mapper runs
-on one thread (with more, COLMAP's per-thread random generators change the model from run to
-run). So the same photos give the same model on the same machine: bitwise in every repeat we
+seeded with ``seed``; the pairs and the retrieval vocabulary are deterministic; each mapper run
+is on one thread (with more, COLMAP's per-thread random generators change the model from run to
+run), up to ``num_threads`` runs at once, each seeded in its own thread. So the same photos give the same model on the same machine: bitwise in every repeat we
 made (24 views at 1024 px in two processes; the test capture a hundred times) but one, where 5
 of 1682 points differed after a test run under load, cause unknown. SIFT and matching use
 ``num_threads`` threads; each photo and each pair is computed alone, so there the thread count
@@ -34,7 +34,8 @@ changes only the timing.
 
 Timing (24 rendered views at 1024 x 768, 4096 features, two cores): write 1 s, SIFT 11-12 s,
 exhaustive matching of 276 pairs 28-30 s, mapping 4.6 s: about 46 s; ``matcher="retrieval"``
-(141 pairs) 32 s with the same accuracy.
+(141 pairs) 32 s with the same accuracy. 2026-11-28, on the capture of ``bench_multiview.py``:
+SIFT 10 s, matching 17 s, the four mapper runs 18 s one after another, 9 s two at a time.
 """
 
 from __future__ import annotations
@@ -389,6 +390,29 @@ def _map(db_path, image_dir, out_dir, seed, relaxed: bool = False):
     return pycolmap.incremental_mapping(db_path, image_dir, out_dir, options=opts)
 
 
+def _map_runs(db_path, image_dir, work: Path, jobs: list, num_threads: int) -> list:
+    """Mapper runs, ``jobs`` = [(folder, seed, relaxed)], up to ``num_threads`` at once.
+
+    Each run is one COLMAP thread seeded in its own Python thread (COLMAP's random generators
+    are per thread; pycolmap lets go of the GIL while it maps), so the models are those of the
+    runs made one after another: the same registered photos, points and poses (checked on the
+    24-view 1024-px capture), in half the time on two cores.
+    """
+    pycolmap = import_pycolmap()
+
+    def one(job):
+        folder, seed, relaxed = job
+        pycolmap.set_random_seed(seed)
+        return _map(db_path, image_dir, work / folder, seed, relaxed=relaxed)
+
+    if num_threads <= 1 or len(jobs) <= 1:
+        return [one(job) for job in jobs]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(min(num_threads, len(jobs))) as pool:
+        return list(pool.map(one, jobs))
+
+
 def _convert(rec, views, names_by_colmap: dict) -> SfmResult:
     """COLMAP reconstruction -> SfmResult (names sorted; K with the principal point folded in)."""
     reg = []
@@ -590,26 +614,26 @@ def run_sfm(views, *, workdir=None, max_features: int = 4096, first_octave: int 
                 verified = _verified_pairs(db_path)
             by_name = {m: i for i, m in enumerate(names)}
             with timer.stage("sfm.map"):
-                recs = _map(db_path, image_dir, work / "sparse", cseed) if verified else {}
+                # the first run and the looser mapper's (the second opinion where photos are left out,
+                # the last of the extra runs where none is) at once
+                recs, recs_relaxed = _map_runs(db_path, image_dir, work, [("sparse", cseed, False),
+                                                                          ("sparse_relaxed", cseed, True)],
+                                               num_threads) if verified else ({}, {})
                 sizes, result = _largest(recs, views, by_name)
                 runs, second, chosen = [_run_note(result)], {}, 0
                 if verified and (result is None or result.n_cameras < n):
                     # photos left out: the looser mapper, kept where it agrees (RELAXED_MAPPER)
-                    pycolmap.set_random_seed(cseed)
-                    recs2 = _map(db_path, image_dir, work / "sparse_relaxed", cseed, relaxed=True)
-                    sizes2, result2 = _largest(recs2, views, by_name)
+                    sizes2, result2 = _largest(recs_relaxed, views, by_name)
                     second = _second_opinion(result, result2, n)
                     if second["kept"]:
-                        recs, sizes, result = recs2, sizes2, result2
+                        recs, sizes, result = recs_relaxed, sizes2, result2
                 elif verified:
                     # every photo registered, rightly or into a wrong model: more runs (other seeds, and
                     # the looser mapper), and of those holding every photo the one that reprojects best
                     # (MAPPER_RUNS)
-                    for j in range(1, MAPPER_RUNS + 1):
-                        relaxed = j == MAPPER_RUNS  # seeds seed + 1, seed + 2, then the looser mapper
-                        sj = cseed if relaxed else (cseed + j) % (2**31 - 1)
-                        pycolmap.set_random_seed(sj)
-                        recs_j = _map(db_path, image_dir, work / f"sparse{j}", sj, relaxed=relaxed)
+                    more = _map_runs(db_path, image_dir, work, [(f"sparse{j}", (cseed + j) % (2**31 - 1), False)
+                                                                for j in range(1, MAPPER_RUNS)], num_threads)
+                    for j, recs_j in enumerate(more + [recs_relaxed], start=1):
                         sizes_j, result_j = _largest(recs_j, views, by_name)
                         runs.append(_run_note(result_j))
                         if result_j is not None and result_j.n_cameras == n and _better(result_j, result):
