@@ -152,6 +152,7 @@ def test_envelope_options_of_the_paper(tmp_path):
     cfg = json.loads((out / "config.json").read_text())["config"]
     assert cfg["tangent_k"] == 4 and cfg["profile"] == "thin-plate" and cfg["rdm_rotations"] == [60, 120]
     assert cfg["form"] == "conifer" and json.loads((out / "metrics.json").read_text())["form"] == "conifer"
+    assert "growth form" in proc.stdout and "conifer (one leader" in proc.stdout
     assert cfg["depth_ratio"] == 0.8 and cfg["segment_length"] == 0.04
     bad = cli("reconstruct", SAMPLE, "--out", tmp_path / "b", "--rdm-rotations", "sixty")
     assert_clean_failure(bad, tmp_path / "b")

@@ -310,6 +310,8 @@ def print_summary(res) -> None:
     t.add_row("reprojection error", f"{100 * m['reprojection_error']:.1f} %")
     t.add_row("IoU", f"{m['iou']:.3f}")
     t.add_row("depth / width", f"{m['depth_width_ratio']:.2f}")
+    if "form" in m:  # the envelope route's growth form (--form; auto: from the silhouette)
+        t.add_row("growth form", m["form"] + (" (one leader, needles)" if m["form"] == "conifer" else ""))
     if "species_probabilities" in m:
         t.add_row("species", f"{m['species']} (predicted {m['species_predicted']}, "
                              f"p = {m['species_probabilities'][m['species_predicted']]:.2f})")
