@@ -89,9 +89,9 @@ def space_colonization(attractors: np.ndarray, start_positions: np.ndarray, star
         parent inside a crown); at 1 a lateral whose attractors lie square to its parent leaves
         at 45 degrees and turns toward them over the next internodes; at w, at about atan(1 / w).
     start_direction_weight : float, optional
-        The weight where a start node grows (a lateral leaving the given trunk or leader; a
-        conifer's leave it at 70-90 degrees, their own side shoots at less); ``None``: as
-        ``direction_weight``.
+        The weight where a start node grows: a lateral leaving the given trunk or leader (a
+        conifer's laterals leave its leader at 70-90 degrees, their own side shoots at less).
+        ``None``: as ``direction_weight``.
 
     Returns
     -------

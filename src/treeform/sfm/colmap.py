@@ -26,9 +26,10 @@ Determinism: the photos are imported before the (threaded) SIFT extraction so th
 depend on which thread finishes first; RANSAC of the two-view verification and the mapper are
 seeded with ``seed``; the pairs and the retrieval vocabulary are deterministic; each mapper run
 is on one thread (with more, COLMAP's per-thread random generators change the model from run to
-run), up to ``num_threads`` runs at once, each seeded in its own thread. So the same photos give the same model on the same machine: bitwise in every repeat we
-made (24 views at 1024 px in two processes; the test capture a hundred times) but one, where 5
-of 1682 points differed after a test run under load, cause unknown. SIFT and matching use
+run), up to ``num_threads`` runs at once, each seeded in its own thread. So the same photos give
+the same model on the same machine: bitwise in every repeat we made (24 views at 1024 px in two
+processes; the test capture a hundred times) but one, where 5 of 1682 points differed after a
+test run under load, cause unknown. SIFT and matching use
 ``num_threads`` threads; each photo and each pair is computed alone, so there the thread count
 changes only the timing.
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 from treeform._shared.defaults import DEFAULT_SEGMENTER
@@ -186,8 +187,6 @@ def leader_direction_weight(form: str) -> float | None:
     name = FORM_SPECIES[form]
     if name is None:
         return None
-    import math
-
     from treeform.growth.species import load_species
 
     return 1.0 / math.tan(math.radians(float(load_species(name).branching_angle_mean)))
