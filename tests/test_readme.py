@@ -5,6 +5,14 @@ copied here), run one after another in a fresh folder (so each input a command n
 must come from the sample set or an earlier command), and each must exit 0. Training runs
 with a couple of steps (the commands are the README's; only their length is cut) and only
 where the ``train`` extra is installed.
+
+The commands form two chains, each in its own folder and file, so that the two workers of
+``make test`` run them side by side: the data chain (``dataset``, ``multiview``, ``eval``,
+``batch``, ``train``: this file's :data:`DATA_VERBS`) in ``tests/test_readme_data.py``, every
+other command here. Both start with ``sample-data``. Each command is its own test (a failure
+names the command; the commands after a failed one in its chain are skipped), so pytest-xdist,
+which hands out a file's tests together and the files with the most tests first, starts the
+two long chains first instead of last.
 """
 
 from __future__ import annotations
@@ -17,6 +25,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = ".venv/bin/treeform"
@@ -25,6 +34,9 @@ SHORTER = {("train", "seg"): ["--steps", "2", "--batch", "2", "--chunk", "2", "-
            ("train", "rbv"): ["--epochs", "1"]}
 # the abs search at 4 candidates instead of the README's 24 (same stages, a sixth of the models rendered)
 SHORTER_METHOD = {"abs": ["--candidates", "4"]}
+# the verbs of the data chain (tests/test_readme_data.py); the others run here
+DATA_VERBS = {"dataset", "multiview", "eval", "batch", "train"}
+HAS_TORCH = importlib.util.find_spec("torch") is not None
 
 
 def shorter(argv: list[str]) -> list[str]:
@@ -47,11 +59,55 @@ def readme_commands() -> list[list[str]]:
     return cmds
 
 
+def readme_chain(data: bool) -> list[list[str]]:
+    """The shortened commands of one chain in README order: the data chain or the other, each after ``sample-data``.
+
+    ``train`` commands are left out where torch is missing (tests/learn/test_train.py covers them where present).
+    """
+    cmds = [shorter(a) for a in readme_commands() if a[:1] != ["sample-data"]
+            and (a[:1] != ["train"] or HAS_TORCH) and (a[:1] and a[0] in DATA_VERBS) == data]
+    first = [a for a in readme_commands() if a[:1] == ["sample-data"]][:1]
+    return first + cmds
+
+
+def chain_ids(cmds: list[list[str]]) -> list[str]:
+    return [f"{i:02d}-{'-'.join(a[:2]) if a and a[0] in ('train', 'dataset', 'library') else (a[0] if a else '')}"
+            for i, a in enumerate(cmds)]
+
+
+class ReadmeChain:
+    """Runs a chain's commands one after another in one empty folder (``work``), with its own cache."""
+
+    def __init__(self, tmp: Path):
+        self.env = {**os.environ, "TREEFORM_CACHE_DIR": str(tmp / "cache"), "COLUMNS": "120"}
+        self.work = tmp / "work"
+        self.work.mkdir()
+        assert not (self.work / ".." / "shared").exists()
+        self.failed: str | None = None
+
+    def run(self, argv: list[str]) -> None:
+        if self.failed is not None:
+            pytest.skip(f"after the failed README command `treeform {self.failed}`")
+        self.failed = shlex.join(argv)
+        proc = subprocess.run([sys.executable, "-m", "treeform", *argv], cwd=self.work, env=self.env,
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, f"treeform {shlex.join(argv)} -> {proc.returncode}\n{proc.stderr[-2000:]}"
+        assert "Traceback" not in proc.stderr, proc.stderr
+        self.failed = None
+
+
+MAIN = readme_chain(data=False)
+
+
 def test_readme_commands_are_self_contained():
     cmds = readme_commands()
     assert len(cmds) >= 25
     for argv in cmds:
         assert not any("../shared" in a or a.startswith("~") or "[" in a for a in argv), argv
+    # every command is in exactly one chain, sample-data (once in the README) opening both
+    assert len(MAIN) + len(readme_chain(data=True)) - 1 == len(cmds) - sum(
+        a[:1] == ["train"] for a in cmds if not HAS_TORCH)
+    assert len(MAIN) >= 25
 
 
 def test_readme_shows_every_verb():
@@ -65,23 +121,16 @@ def test_readme_shows_every_verb():
     assert verbs - shown == set(), f"verbs without a README example: {sorted(verbs - shown)}"
 
 
-def test_every_readme_command_runs_in_an_empty_folder(tmp_path):
-    has_torch = importlib.util.find_spec("torch") is not None
-    env = {**os.environ, "TREEFORM_CACHE_DIR": str(tmp_path / "cache"), "COLUMNS": "120"}
-    work = tmp_path / "work"
-    work.mkdir()
-    assert not (work / ".." / "shared").exists()
-    ran = 0
-    for argv in readme_commands():
-        if argv[:1] == ["train"] and not has_torch:
-            continue  # needs the train extra (torch); tests/learn/test_train.py covers it where present
-        argv = shorter(argv)
-        proc = subprocess.run([sys.executable, "-m", "treeform", *argv], cwd=work, env=env, capture_output=True,
-                              text=True, timeout=600)
-        assert proc.returncode == 0, f"treeform {shlex.join(argv)} -> {proc.returncode}\n{proc.stderr[-2000:]}"
-        assert "Traceback" not in proc.stderr, proc.stderr
-        ran += 1
-    assert ran >= 25
-    for f in ("out/mytree/tree.glb", "out/oak_rbv/tree.glb", "out/autumn/contact_sheet.png", "out/cloud.glb",
-              "out/dataset/manifest.json"):
-        assert (work / f).stat().st_size > 0, f
+@pytest.fixture(scope="module")
+def main_chain(tmp_path_factory):
+    return ReadmeChain(tmp_path_factory.mktemp("readme"))
+
+
+@pytest.mark.parametrize("argv", MAIN, ids=chain_ids(MAIN))
+def test_readme_command_runs_in_an_empty_folder(main_chain, argv):
+    main_chain.run(argv)
+
+
+def test_readme_chain_wrote_its_results(main_chain):
+    for f in ("out/mytree/tree.glb", "out/oak_rbv/tree.glb", "out/autumn/contact_sheet.png", "out/cloud.glb"):
+        assert (main_chain.work / f).stat().st_size > 0, f

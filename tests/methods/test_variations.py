@@ -369,7 +369,7 @@ def test_growth_forms_of_the_shared_billboards(library):
     pairs = [(_form_truth(n), e.form) for n, e in zip(library.names, library.exemplars) if _form_truth(n)]
     assert len(pairs) == 35
     right = sum(t == f for t, f in pairs)
-    assert right >= 30, pairs  # 31 of 35 when written (module docstring of form.py)
+    assert right >= 30, pairs  # 31 of 35 when written (module docstring of treeform.contour.form)
     assert all(f == "broadleaf" for t, f in pairs if t == "broadleaf")  # no broadleaf taken for a palm
     assert _by_name(library, "cesium_tree_billboard.png").form == "broadleaf"
     for col in (3, 5, 6, 7):  # coconut palms

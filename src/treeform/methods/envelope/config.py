@@ -82,7 +82,7 @@ class EnvelopeConfig:
     """Growth form: 'broadleaf' (the trunk splits into scaffold limbs where the crown begins),
     'conifer' (one leader up to the crown's top, laterals leaving it all along the crown at a
     conifer's angle; needle cards with ``foliage='auto'``) or 'auto': read from the tree's
-    silhouette (:func:`treeform.methods.variations.form.classify_form`: a narrow cone or column
+    silhouette (:func:`treeform.contour.form.classify_form`: a narrow cone or column
     down to near the ground is a conifer)."""
     pipe_exponent: float = 2.3
     """Pipe-model exponent e: r_parent^e = sum r_child^e."""

@@ -76,11 +76,11 @@ def _trunk_nodes_along(pts: np.ndarray, seg_len: float) -> np.ndarray:
 def tree_form(tree_mask: np.ndarray) -> str:
     """Growth form, 'broadleaf' or 'conifer', of the tree in a photo's (H, W) tree mask.
 
-    The silhouette rule of :func:`treeform.methods.variations.form.classify_form` (chosen on
+    The silhouette rule of :func:`treeform.contour.form.classify_form` (chosen on
     the billboard library's cut-outs: a narrow cone or column reaching down to near the ground
     is a conifer); a palm is grown as a broadleaf.
     """
-    from treeform.methods.variations.form import classify_form
+    from treeform.contour.form import classify_form
 
     rgba = np.zeros(tree_mask.shape + (4,), np.uint8)
     rgba[np.asarray(tree_mask, bool), 3] = 255

@@ -12,7 +12,7 @@ from treeform.methods.variations.cloud import cloud
 from treeform.methods.variations.config import CloudConfig, VariationsConfig
 from treeform.io import read_rgba
 from treeform.methods.variations.exemplar import Exemplar, normalize_rgba, process_exemplar, split_crown_trunk
-from treeform.methods.variations.form import FORMS, classify_form, form_descriptor
+from treeform.contour.form import FORMS, classify_form, form_descriptor
 from treeform.methods.variations.pipeline import billboard, contact_sheet, load_exemplar, morph, process_library, vary
 from treeform.methods.variations.season import SeasonReference, season_reference, season_transfer
 from treeform.methods.variations.synthesis import combine_contours, match_histograms, synthesize, transfer_rgba

@@ -47,7 +47,7 @@ class VariationsConfig:
     any_form: bool = False
     """Combine exemplars of any growth form. By default a variation combines exemplars of
     one form only, broadleaf, conifer or palm, read from their silhouettes
-    (:mod:`treeform.methods.variations.form`); another form is used only for an exemplar
+    (:mod:`treeform.contour.form`); another form is used only for an exemplar
     that is the library's only one of its form."""
     season_space: str = "lab"
     """Season transfer (``season=``): the colour space whose channels are matched one by

@@ -2,9 +2,11 @@
 
 Variations combine exemplars of the same form (seed 000 §7, Limitations: combining
 radically different trees gives implausible ones; a palm's fronds smeared into a
-broadleaf crown). The form is read from the alpha mask alone, never from a file name, so
-it works for any user library. Descriptor (:func:`form_descriptor`), on the mask
-normalised to 256 px:
+broadleaf crown), and the single-photo envelope route grows a conifer with a leader
+(:func:`treeform.methods.envelope.pipeline.tree_form`). The form is read from the alpha
+mask alone, never from a file name, so it works for any user library or photo.
+Descriptor (:func:`form_descriptor`), on the mask normalised to 256 px
+(:func:`treeform.contour.normalize.normalize_rgba`):
 
 * **stem**: the bare stem, as a fraction of the tree's height: rows counted up from the
   bottom while the mask's width there is at most 12 % of the widest row's extent.
@@ -49,6 +51,7 @@ import cv2
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform.contour.normalize import normalize_rgba
 
 __all__ = ["FORMS", "FormDescriptor", "form_descriptor", "classify_form"]
 
@@ -89,8 +92,6 @@ class FormDescriptor:
 
 def _alpha(tree) -> np.ndarray:
     """(256, 256) float32 alpha of the tree, normalised (cropped, scaled, on the bottom)."""
-    from treeform.methods.variations.exemplar import normalize_rgba
-
     rgba = tree.rgba if hasattr(tree, "rgba") else tree
     a = np.asarray(rgba)
     if a.ndim != 3 or a.shape[2] != 4 or a.dtype != np.uint8:
