@@ -64,14 +64,15 @@ def readme_chain(data: bool) -> list[list[str]]:
 
     ``train`` commands are left out where torch is missing (tests/learn/test_train.py covers them where present).
     """
-    cmds = [shorter(a) for a in readme_commands() if a[:1] != ["sample-data"]
-            and (a[:1] != ["train"] or HAS_TORCH) and (a[:1] and a[0] in DATA_VERBS) == data]
-    first = [a for a in readme_commands() if a[:1] == ["sample-data"]][:1]
-    return first + cmds
+    every = readme_commands()
+    first = [a for a in every if a[:1] == ["sample-data"]][:1]
+    return first + [shorter(a) for a in every if a[:1] != ["sample-data"]
+                    and (a[:1] != ["train"] or HAS_TORCH) and (a[:1] and a[0] in DATA_VERBS) == data]
 
 
 def chain_ids(cmds: list[list[str]]) -> list[str]:
-    return [f"{i:02d}-{'-'.join(a[:2]) if a and a[0] in ('train', 'dataset', 'library') else (a[0] if a else '')}"
+    """Test ids: the command's place in its chain and its verb (with the sub-verb of the two-word verbs)."""
+    return [f"{i:02d}-" + "-".join(a[:2] if a[:1] in (["train"], ["dataset"], ["library"]) else a[:1])
             for i, a in enumerate(cmds)]
 
 

@@ -50,7 +50,6 @@ from dataclasses import asdict, dataclass
 import cv2
 import numpy as np
 
-from treeform._shared.errors import InputError
 from treeform.contour.normalize import normalize_rgba
 
 __all__ = ["FORMS", "FormDescriptor", "form_descriptor", "classify_form"]
@@ -92,11 +91,8 @@ class FormDescriptor:
 
 def _alpha(tree) -> np.ndarray:
     """(256, 256) float32 alpha of the tree, normalised (cropped, scaled, on the bottom)."""
-    rgba = tree.rgba if hasattr(tree, "rgba") else tree
-    a = np.asarray(rgba)
-    if a.ndim != 3 or a.shape[2] != 4 or a.dtype != np.uint8:
-        raise InputError(f"tree: expected an Exemplar or an (H, W, 4) uint8 RGBA image, got {a.shape} {a.dtype}")
-    return normalize_rgba(a, size=_SIDE)[..., 3].astype(np.float32) / 255.0
+    rgba = tree.rgba if hasattr(tree, "rgba") else tree  # normalize_rgba checks it is (H, W, 4) uint8
+    return normalize_rgba(rgba, size=_SIDE)[..., 3].astype(np.float32) / 255.0
 
 
 def _drop_specks(mask: np.ndarray) -> np.ndarray:
