@@ -88,3 +88,35 @@ def test_billboard_from_a_real_photo(tmp_path):
     with Image.open(tmp_path / "tree.png") as im:
         assert im.mode == "RGBA"
     assert (tmp_path / "sheet.png").is_file()
+
+
+def test_mattes_on_threads_side_by_side_leave_standard_output_as_it_was(capsys):
+    """PyMatting's prints are swallowed while any thread mattes; a redirect per thread (which
+    overlapping threads undo in the wrong order) lost the process's output for good."""
+    import sys
+    import threading
+
+    from treeform.segment import matting
+
+    image, _, alpha = _scene(64)
+    tri = np.where(alpha > 0.99, 1.0, np.where(alpha < 0.01, 0.0, 0.5))
+    before = sys.stdout
+    start = threading.Barrier(3)
+    results = []
+
+    def work():
+        start.wait()
+        with matting._quiet_stdout():
+            print("swallowed")
+            results.append(alpha_matting(image, tri))
+
+    threads = [threading.Thread(target=work) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sys.stdout is before and matting._QUIET["depth"] == 0
+    print("still here")
+    out = capsys.readouterr().out
+    assert "still here" in out and "swallowed" not in out
+    assert len(results) == 3 and all(np.array_equal(r, results[0]) for r in results)  # the same matte each time

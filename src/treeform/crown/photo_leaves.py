@@ -492,11 +492,9 @@ def choose_views(foliage: Foliage, cameras, masks, images=None, *,
             u = np.clip(np.floor(uv[:, 0]).astype(np.int64), 0, cam.width - 1)
             v = np.clip(np.floor(uv[:, 1]).astype(np.int64), 0, cam.height - 1)
             col[k, j] = img[v, u, :3]
-        import warnings
+        from treeform._shared.nanstats import nanmedian_views
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # cards no view sees: all NaN
-            med = np.nanmedian(col, axis=0)
+        med = nanmedian_views(col)  # NaN for the cards no view sees
         dev = np.linalg.norm(col - med[None], axis=2)
         dev = np.where(seen, dev, np.inf)
         ok = dev <= agree

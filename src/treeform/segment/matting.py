@@ -23,6 +23,7 @@ import io
 import logging
 import os
 import sys
+import threading
 
 import cv2
 import numpy as np
@@ -38,6 +39,32 @@ __all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", 
 UNKNOWN = 0.5
 
 log = logging.getLogger(__name__)
+
+_QUIET_LOCK = threading.Lock()
+_QUIET = {"depth": 0, "saved": None}
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Standard output swallowed while any thread is inside (PyMatting prints its warnings).
+
+    ``contextlib.redirect_stdout`` is not safe across threads: two overlapping redirects restore
+    each other's buffers and the process's output is lost for good. Here the first thread in
+    swaps ``sys.stdout`` for a sink and the last one out puts the original back.
+    """
+    with _QUIET_LOCK:
+        if _QUIET["depth"] == 0:
+            _QUIET["saved"] = sys.stdout
+            sys.stdout = io.StringIO()
+        _QUIET["depth"] += 1
+    try:
+        yield
+    finally:
+        with _QUIET_LOCK:
+            _QUIET["depth"] -= 1
+            if _QUIET["depth"] == 0:
+                sys.stdout = _QUIET["saved"]
+                _QUIET["saved"] = None
 
 COMPILE_SECONDS = 50
 """Rough time numba takes to compile all of PyMatting's kernels (measured: 47 s on 2 cores)."""
@@ -283,8 +310,9 @@ def alpha_matting(image, trimap, *, max_side: int = 800) -> np.ndarray:
     else:
         im_s, tr_s = img, tri
     # PyMatting prints a "PERFORMANCE WARNING" paragraph to stdout whenever its preconditioner
-    # needs a diagonal shift (it then retries): not for our users' terminals
-    with contextlib.redirect_stdout(io.StringIO()):
+    # needs a diagonal shift (it then retries): not for our users' terminals (the views of a
+    # multi-view capture are matted on threads side by side: one sink for all of them)
+    with _quiet_stdout():
         alpha = estimate_alpha_cf(im_s.astype(np.float64) / 255.0, tr_s,
                                   cg_kwargs={"maxiter": 2000})
     # solver noise: a faint haze of alpha ~ 0.01 over the background, or holes of 0.99

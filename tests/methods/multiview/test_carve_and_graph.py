@@ -247,3 +247,23 @@ def test_tree_pieces_keep_the_tree_and_its_clumps_and_drop_a_far_crown(scene):
     assert keep[len(ct):len(ct) + len(clump)].all()  # a clump a gap of 0.25 m off
     assert not keep[len(ct) + len(clump):].any()  # the far crown
     assert not tree_pieces(both, [0, 0, 0], 1.0, gap=0.1)[len(ct):len(ct) + len(clump)].any()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_per_view_median_is_numpys_nanmedian(dtype):
+    """The carving's and the leaf colours' per-view median: NumPy's values exactly, any count of views."""
+    import warnings
+
+    from treeform._shared.nanstats import nanmedian_views
+
+    rng = np.random.default_rng(3)
+    for shape in [(24, 5000), (7, 300, 3), (1, 10), (2, 4)]:
+        a = (rng.normal(size=shape) * 50).astype(dtype)
+        a[rng.random(shape) < 0.45] = np.nan
+        a[:, 0] = np.nan  # a point no view sees
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ref = np.nanmedian(a, axis=0)
+        got = nanmedian_views(a)
+        assert got.dtype == ref.dtype and got.shape == ref.shape
+        assert np.array_equal(got, ref, equal_nan=True)

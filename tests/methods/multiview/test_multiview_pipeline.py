@@ -58,6 +58,29 @@ def test_outputs_and_cameras(run):
     assert set(np.unique(labels)) <= {0, 1, 2} and (labels == 1).any() and (labels == 2).any()
 
 
+def test_views_matted_on_threads_match_one_by_one(run, monkeypatch):
+    """The matting stage's threads change when a view is matted, not its matte."""
+    from types import SimpleNamespace
+
+    import treeform.methods.multiview.pipeline as mv
+    from treeform.methods.multiview.config import MultiviewConfig
+    from treeform.sfm.photos import load_photos
+
+    cap = run[0]
+    views = load_photos(sorted((cap.out / "images").iterdir())[:4])
+    sfm = SimpleNamespace(names=[v.name for v in views],
+                          sizes=np.array([[v.image.shape[1], v.image.shape[0]] for v in views]))
+    cfg = MultiviewConfig(mask_size=320, segmenter="learned")
+    out = {}
+    for threads in (1, 3):
+        monkeypatch.setattr(mv, "MATTE_THREADS", threads)
+        out[threads] = mv._segment_views(views, sfm, cfg)
+    (l1, i1, s1), (l3, i3, s3) = out[1], out[3]
+    assert len(l3) == 4 and all(np.array_equal(a, b) for a, b in zip(l1, l3))
+    assert all(np.array_equal(a, b) for a, b in zip(i1, i3)) and np.array_equal(s1, s3)
+    assert all((lab == 1).any() for lab in l3)  # each view's tree found
+
+
 def test_the_glb_passes_the_khronos_validator(run, khronos_report):
     report = khronos_report(run[2] / "tree.glb")
     assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]

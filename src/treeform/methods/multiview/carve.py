@@ -238,13 +238,11 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
 
 def _nanmedian(a: np.ndarray) -> np.ndarray:
     """Median over axis 0 ignoring NaN (NaN where a column is all NaN), without warnings."""
-    import warnings
+    from treeform._shared.nanstats import nanmedian_views
 
     if a.shape[1] == 0:
         return np.zeros(0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmedian(a, axis=0)
+    return nanmedian_views(a)
 
 
 def _disk(r: int) -> np.ndarray:

@@ -33,6 +33,7 @@ Stages, each one call into a domain folder or a sibling module:
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,6 +70,9 @@ TEXEL_TOLERANCE = 0.1
 TEXEL_DILATE = 1
 """Pixels by which the views' tree masks grow before the texels are carved against them (the
 cameras' registration is good to about a pixel at the mattes' size)."""
+
+MATTE_THREADS = max(1, min(4, os.cpu_count() or 1))
+"""Views matted at once (threads) by the matting stage."""
 
 TILE_WOOD_FROM = 2.0
 """The network's wood on full-size tiles (``tile_wood``) joins a photo's matte when the photo is at
@@ -209,7 +213,14 @@ def _user_labels(masks, name: str, size: tuple) -> np.ndarray:
 
 
 def _segment_views(views, sfm, cfg, masks=None):
-    """Labels (0/1/2) of every registered view at ``mask_size`` and the K scaled to them."""
+    """Labels (0/1/2) of every registered view at ``mask_size`` and the K scaled to them.
+
+    The views are matted on :data:`MATTE_THREADS` threads side by side (the network, the edge
+    band's closed-form matting and the image filters let go of the GIL); each view's matte is its
+    own, so the result does not depend on the threads' order.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
     from PIL import Image
 
     from treeform.segment import segment
@@ -217,19 +228,20 @@ def _segment_views(views, sfm, cfg, masks=None):
     from treeform.segment.thin import thin_dark_lines
 
     by_name = {v.name: v for v in views}
-    labels, images, scales = [], [], []
     seg_net = None
     if masks is None and cfg.tile_wood and cfg.segmenter == "learned":
         from treeform.learn.infer import Segmenter
 
         seg_net = Segmenter()
-    for k, name in enumerate(sfm.names):
+
+    def one(k: int):
+        name = sfm.names[k]
         img = by_name[name].image
         s = min(1.0, cfg.mask_size / max(img.shape[:2]))
         small = img if s == 1.0 else np.asarray(Image.fromarray(img).resize(
             (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))), Image.LANCZOS))
         if masks is not None:
-            labels.append(_user_labels(masks, name, (small.shape[1], small.shape[0])))
+            lab = _user_labels(masks, name, (small.shape[1], small.shape[0]))
         else:
             lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
             if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
@@ -239,10 +251,17 @@ def _segment_views(views, sfm, cfg, masks=None):
                 # sky near the tree become wood; the carving keeps only those the views agree on
                 # in 3D (a power line or a roof edge behind the tree agrees with nothing)
                 lab[thin_dark_lines(small, lab > 0, against=sky_mask(small)) & (lab == 0)] = 2
-            labels.append(lab)
-        images.append(small)
-        scales.append(small.shape[1] / sfm.sizes[k, 0])
-    return labels, images, np.asarray(scales)
+        return lab, small, small.shape[1] / sfm.sizes[k, 0]
+
+    n = len(sfm.names)
+    if MATTE_THREADS > 1 and n > 1:
+        with ThreadPoolExecutor(max_workers=min(MATTE_THREADS, n)) as pool:
+            out = list(pool.map(one, range(n)))
+    else:
+        out = [one(k) for k in range(n)]
+    labels = [o[0] for o in out]
+    images = [o[1] for o in out]
+    return labels, images, np.asarray([o[2] for o in out])
 
 
 def _tile_wood(img: np.ndarray, shape: tuple, seg_net) -> np.ndarray:
