@@ -29,11 +29,11 @@ def nanmedian_views(a) -> np.ndarray:
     >>> nanmedian_views(a).tolist()
     [2.5, nan, 6.0]
     """
-    a = np.asarray(a)
+    a = np.atleast_1d(np.asarray(a))
     if not np.issubdtype(a.dtype, np.floating):
         a = a.astype(np.float64)
-    if a.ndim == 0 or a.shape[0] == 0:
-        return np.full(a.shape[1:], np.nan, a.dtype if a.ndim else np.float64)
+    if a.shape[0] == 0:
+        return np.full(a.shape[1:], np.nan, a.dtype)
     s = np.sort(np.moveaxis(a, 0, -1), axis=-1)  # NaN sort last
     k = np.count_nonzero(~np.isnan(s), axis=-1)
     lo = np.take_along_axis(s, np.maximum((k - 1) // 2, 0)[..., None], -1)[..., 0]

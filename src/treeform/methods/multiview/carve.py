@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform._shared.nanstats import nanmedian_views
 
 __all__ = ["CarvedTree", "carve_tree", "explain_wood", "main_component", "tree_pieces"]
 
@@ -217,7 +218,7 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
             inside[ok] += dist_in[i][row, col] > r_px
             wide[i, ok] = width[i][row, col] * z[ok] / focal[i]
         keep = (seen >= min_seen) & (hit >= np.ceil((1.0 - tolerance) * seen))
-        wide_done = (_nanmedian(wide) > 3.0 * edge) if edge <= fine_surface * (1 + 1e-9) or fine_surface < 0 \
+        wide_done = (nanmedian_views(wide) > 3.0 * edge) if edge <= fine_surface * (1 + 1e-9) or fine_surface < 0 \
             else np.zeros(n, bool)
         done = keep & ((inside >= np.ceil((1.0 - tolerance) * seen)) | wide_done)
         if level == n_levels:
@@ -234,15 +235,6 @@ def carve_tree(K, cam_to_world, labels, *, box, voxel: float, tolerance: float =
     points = np.concatenate(done_pts + [last]) if done_pts else last
     size = np.concatenate(done_size + [np.full(len(last), edge)]) if done_size else np.full(len(last), edge)
     return _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, images)
-
-
-def _nanmedian(a: np.ndarray) -> np.ndarray:
-    """Median over axis 0 ignoring NaN (NaN where a column is all NaN), without warnings."""
-    from treeform._shared.nanstats import nanmedian_views
-
-    if a.shape[1] == 0:
-        return np.zeros(0)
-    return nanmedian_views(a)
 
 
 def _disk(r: int) -> np.ndarray:
@@ -276,9 +268,9 @@ def _describe(points, size, K, w2c, focal, width, dist_in, dist_out, labs, image
                     np.clip(col * img.shape[1] // w, 0, img.shape[1] - 1)].astype(np.float32)
             c[~(ok & (lab > 0))] = np.nan
             cols.append(c)
-    thick = np.nan_to_num(_nanmedian(thick), nan=0.0)
+    thick = np.nan_to_num(nanmedian_views(thick), nan=0.0)
     if cols is not None and n:
-        med = _nanmedian(np.stack(cols))
+        med = nanmedian_views(np.stack(cols))
         colors = np.nan_to_num(med, nan=128.0).clip(0, 255).astype(np.uint8)
     else:
         colors = np.full((n, 3), 128, np.uint8)

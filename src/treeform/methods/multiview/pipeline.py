@@ -253,15 +253,9 @@ def _segment_views(views, sfm, cfg, masks=None):
                 lab[thin_dark_lines(small, lab > 0, against=sky_mask(small)) & (lab == 0)] = 2
         return lab, small, small.shape[1] / sfm.sizes[k, 0]
 
-    n = len(sfm.names)
-    if MATTE_THREADS > 1 and n > 1:
-        with ThreadPoolExecutor(max_workers=min(MATTE_THREADS, n)) as pool:
-            out = list(pool.map(one, range(n)))
-    else:
-        out = [one(k) for k in range(n)]
-    labels = [o[0] for o in out]
-    images = [o[1] for o in out]
-    return labels, images, np.asarray([o[2] for o in out])
+    with ThreadPoolExecutor(max_workers=max(1, min(MATTE_THREADS, len(sfm.names)))) as pool:
+        labels, images, scales = zip(*pool.map(one, range(len(sfm.names))))
+    return list(labels), list(images), np.asarray(scales)
 
 
 def _tile_wood(img: np.ndarray, shape: tuple, seg_net) -> np.ndarray:
