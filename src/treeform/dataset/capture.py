@@ -56,8 +56,10 @@ from treeform._shared.timing import ProgressCallback, StageTimer
 
 __all__ = ["CaptureResult", "FOCAL_35MM", "STAGES", "synthetic_capture"]
 
-FOCAL_35MM = 26.0
-"""35 mm-equivalent focal length of the virtual phone (a typical main camera), in mm."""
+FOCAL_35MM = 25.0
+"""35 mm-equivalent focal length of the virtual phone (its :data:`FOCAL_MM` lens on a 1/2.55" 4:3
+sensor, a typical main camera), in mm. Defined by the diagonal of the frame, as phones write it and
+as :func:`treeform.sfm.photos.exif_focal_px` reads it (``f_px = f35 * diag_px / 43.27``)."""
 FOCAL_MM = 4.25
 """The lens's true focal length written to EXIF (a 1/2.55" sensor: 5.9 mm wide)."""
 _SUPERSAMPLE = 2
@@ -1087,11 +1089,12 @@ def synthetic_capture(out, *, views: int = 24, size: int = 1024, species: str = 
         out, views, size, species, seed, model, clutter, radius, camera_height, progress)
     from treeform.io.gltf import write_glb
     from treeform.render import Lighting, Renderer
+    from treeform.sfm.photos import DIAGONAL_35MM
     from treeform.structures import Mesh
 
     timer = StageTimer(progress)
     width, height = size, int(round(0.75 * size))
-    f_px = FOCAL_35MM / 36.0 * width
+    f_px = FOCAL_35MM * math.hypot(width, height) / DIAGONAL_35MM
     fov_y = math.degrees(2.0 * math.atan(0.5 * height / f_px))
     stream = lambda k: np.random.default_rng([seed, k])  # noqa: E731
 
