@@ -244,6 +244,10 @@ def test_mapper_runs_at_once_give_the_models_of_runs_one_after_another(tmp_path,
 
     one, two = (_map_runs(db, images, tmp_path / name, jobs, threads) for name, threads in (("one", 1), ("two", 2)))
     assert len(one) == len(two) == 3 and any(len(r) for r in one)
+    # runs at once map from their own copies of the database (two runs opening one SQLite file at the
+    # same moment sometimes fail); runs one after another share it
+    assert all((tmp_path / "two" / f / "database.db").is_file() for f, _, _ in jobs)
+    assert not list((tmp_path / "one").rglob("database.db"))
     for a, b in zip(one, two):
         ma, mb = models(a), models(b)
         assert ma.keys() == mb.keys()

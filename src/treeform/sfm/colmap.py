@@ -398,15 +398,28 @@ def _map_runs(db_path, image_dir, work: Path, jobs: list, num_threads: int) -> l
     are per thread; pycolmap lets go of the GIL while it maps), so the models are those of the
     runs made one after another: the same registered photos, points and poses (checked on the
     24-view 1024-px capture), in half the time on two cores.
+
+    Runs at once each map from their own copy of the database (``<folder>/database.db``, copied
+    before any starts): COLMAP opens its database for writing, and two runs opening one SQLite
+    file at the same moment sometimes fail ("No registered database factory succeeded").
     """
+    import shutil
+
     pycolmap = import_pycolmap()
+    at_once = num_threads > 1 and len(jobs) > 1
+    dbs = {}
+    for folder, _, _ in jobs:
+        dbs[folder] = db_path
+        if at_once:
+            (work / folder).mkdir(parents=True, exist_ok=True)
+            dbs[folder] = shutil.copyfile(db_path, work / folder / "database.db")
 
     def one(job):
         folder, seed, relaxed = job
         pycolmap.set_random_seed(seed)
-        return _map(db_path, image_dir, work / folder, seed, relaxed=relaxed)
+        return _map(dbs[folder], image_dir, work / folder, seed, relaxed=relaxed)
 
-    if num_threads <= 1 or len(jobs) <= 1:
+    if not at_once:
         return [one(job) for job in jobs]
     from concurrent.futures import ThreadPoolExecutor
 
