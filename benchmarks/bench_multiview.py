@@ -21,7 +21,7 @@ scores the result against the truth:
 
 ``--mattes truth`` feeds the capture's true labels as the per-view mattes (an oracle that
 separates matting errors from the rest). ``--bound`` also scores, at the same novel views, the
-visual hull of the true labels (5-cm cells) seen by the true cameras and by the route's SfM
+exact visual hull of the true labels (5-cm cells) seen by the true cameras and by the route's SfM
 cameras: what a reconstruction from perfect silhouettes can reach, with and without the SfM's
 camera errors (a few minutes more).
 """
@@ -91,26 +91,25 @@ def _mid_camera(Ta, Tb):
     return T
 
 
-def _hull_bound(Ks, W2C, masks, bounds, cams, *, step: float = 0.05):
-    """Novel-view masks of the visual hull of ``masks`` seen by cameras ``Ks`` / ``W2C`` (world to OpenCV camera).
+def _exact_hull(Ks, cam_to_world, masks, box, step: float):
+    """Cells (centres, edges) of the visual hull of ``masks``, exact to ``step`` (OpenCV cameras).
 
-    What a reconstruction from these silhouettes alone can reach at the novel views: carved on an
-    octree over ``bounds`` (a cell goes when some view that holds it has no tree pixel within its
-    footprint, and stays whole, unrefined, when every such view's mask covers its footprint) down
-    to cells of ``step`` metres near the surface, then splatted into each of ``cams`` =
-    [(K, cam_to_world, (h, w))].
+    An octree over ``box``: a cell goes when a view that holds it has no tree pixel within its
+    footprint, stays whole when every such view's mask covers its footprint, and splits otherwise;
+    at ``step`` a cell stays when its centre's pixel is tree in every view that holds it. (The
+    route's ``carve_tree`` is conservative by design -- it keeps a cell with tree within its
+    footprint plus 0.75 px at every level, so its hull is fatter; a bound wants the exact one.)
     """
-    import cv2
     from scipy.ndimage import distance_transform_edt
 
     d_out = [distance_transform_edt(~m).astype(np.float32) for m in masks]
     d_in = [distance_transform_edt(m).astype(np.float32) for m in masks]
-    lo, hi = (np.asarray(b, float) for b in bounds)
-    lo, hi = lo - 0.5, hi + 0.5
+    W2C = [np.linalg.inv(np.asarray(T, float)) for T in cam_to_world]
+    lo, hi = (np.asarray(b, float) for b in box)
     e = float((hi - lo).max()) / 32.0
     cells = np.stack(np.meshgrid(*[np.arange(lo[i] + e / 2, hi[i], e) for i in range(3)], indexing="ij"),
                      -1).reshape(-1, 3)
-    solid, fine = [], np.zeros((0, 3))
+    pts, size = [], []
     while len(cells):
         empty, full = np.zeros(len(cells), bool), np.ones(len(cells), bool)
         for K, W, dout, din in zip(Ks, W2C, d_out, d_in):
@@ -123,28 +122,35 @@ def _hull_bound(Ks, W2C, masks, bounds, cams, *, step: float = 0.05):
             r = 0.5 * np.sqrt(3) * e * K[0][0] / z if e > step else 0.0
             empty |= held & (dout[vv, uu] > r)
             full &= ~held | (din[vv, uu] > r)
-        if e <= step:
-            fine = cells[~empty]
+        last = e <= step
+        done = ~empty if last else ~empty & full
+        pts.append(cells[done])
+        size.append(np.full(int(done.sum()), e))
+        if last:
             break
-        solid.append((cells[~empty & full], e))
         off = np.stack(np.meshgrid(*[[-0.25, 0.25]] * 3, indexing="ij"), -1).reshape(-1, 3) * e
         cells = (cells[~empty & ~full][:, None, :] + off[None]).reshape(-1, 3)
         e /= 2.0
+    return np.concatenate(pts), np.concatenate(size)
+
+
+def _splat(points, size, cams):
+    """Masks of cells (centres ``points``, edges ``size``) seen by ``cams`` = [(K, cam_to_world, (h, w))]."""
+    import cv2
+
     out = []
     for K, T, shape in cams:
-        Wc = np.linalg.inv(T)
+        W = np.linalg.inv(T)
+        uvw = (points @ W[:3, :3].T + W[:3, 3]) @ np.asarray(K, float).T
+        front = uvw[:, 2] > 0
+        u, v, z = uvw[front, 0] / uvw[front, 2], uvw[front, 1] / uvw[front, 2], uvw[front, 2]
+        half = np.round(0.5 * size[front] * K[0][0] / z).astype(int)
         mask = np.zeros(shape, np.uint8)
-        for P, edge in [(fine, 0.0)] + solid:
-            uvw = (P @ Wc[:3, :3].T + Wc[:3, 3]) @ np.asarray(K, float).T
-            uvw = uvw[uvw[:, 2] > 0]
-            u, v = uvw[:, 0] / uvw[:, 2], uvw[:, 1] / uvw[:, 2]
-            if edge == 0.0:  # cells finer than a pixel: the pixel of their centre
-                iu, iv = np.floor(u).astype(int), np.floor(v).astype(int)
-                ok = (iu >= 0) & (iu < shape[1]) & (iv >= 0) & (iv < shape[0])
-                mask[iv[ok], iu[ok]] = 1
-            else:
-                for a, b, half in zip(u, v, np.round(0.5 * edge * K[0][0] / uvw[:, 2]).astype(int)):
-                    cv2.rectangle(mask, (int(a) - half, int(b) - half), (int(a) + half, int(b) + half), 1, -1)
+        iu, iv = np.floor(u).astype(int), np.floor(v).astype(int)
+        ok = (half == 0) & (iu >= 0) & (iu < shape[1]) & (iv >= 0) & (iv < shape[0])
+        mask[iv[ok], iu[ok]] = 1  # cells under a pixel: the pixel of their centre
+        for x, y, r in zip(iu[half > 0], iv[half > 0], half[half > 0]):
+            cv2.rectangle(mask, (int(x) - r, int(y) - r), (int(x) + r, int(y) + r), 1, -1)
         out.append(mask > 0)
     return out
 
@@ -247,13 +253,15 @@ def main(argv=None) -> int:
     rec = Mesh([MeshPart(s * p.positions @ R.T + t, p.normals @ R.T, p.uvs, p.colors, p.indices, p.material, p.name)
                 for p in res.mesh.parts])
     names = sorted(truth)
-    ious, extra, missed, novel_true = [], [], [], []
+    ious, extra, missed, novel_true, novel_cams = [], [], [], [], []
     for k in range(len(names)):
         A, B = truth[names[k]], truth[names[(k + 1) % len(names)]]
         T = _mid_camera(np.asarray(A["cam_to_world"]), np.asarray(B["cam_to_world"]))
         m_true = _render_mask(true_mesh, np.asarray(A["K"]), T, A["size"])
         m_rec = _render_mask(rec, np.asarray(A["K"]), T, A["size"])
         novel_true.append(m_true)
+        novel_cams.append((np.diag([m_true.shape[1] / A["size"][0]] * 2 + [1.0]) @ np.asarray(A["K"], float), T,
+                           m_true.shape))
         ious.append((m_true & m_rec).sum() / max((m_true | m_rec).sum(), 1))
         extra.append((m_rec & ~m_true).sum() / max(m_true.sum(), 1))
         missed.append((m_true & ~m_rec).sum() / max(m_true.sum(), 1))
@@ -265,32 +273,28 @@ def main(argv=None) -> int:
             vis[m_rec & ~m_true] = (220, 40, 40)
             vis[m_true & ~m_rec] = (40, 80, 220)
             Image.fromarray(vis).save(a.out / "novel_view_00.png")
-    if a.bound:  # the visual hull of the true mattes, from the true cameras and from the SfM's
+    if a.bound:  # the visual hull of the true labels, seen by the true cameras and by the SfM's
         from PIL import Image
 
+        step = 0.05
         masks = [np.asarray(Image.open(cap / "truth" / "labels" / (Path(n).stem + ".png"))) > 0 for n in names]
-        Kt = [np.asarray(truth[n]["K"], float) for n in names]
-        Wt = [np.linalg.inv(np.asarray(truth[n]["cam_to_world"], float)) for n in names]
-        sim = np.eye(4)
-        sim[:3, :3], sim[:3, 3] = s * R, t
+        lo, hi = (np.asarray(b, float) for b in true_mesh.bounds())
+        true_hull = _exact_hull([truth[n]["K"] for n in names], [truth[n]["cam_to_world"] for n in names], masks,
+                                (lo - 0.5, hi + 0.5), step)
+        # in the SfM's own frame, with its cameras, then mapped into the truth's by the similarity
         reg = [names.index(n) for n in res.sfm.names]
-        Ws = [np.linalg.inv(res.sfm.cam_to_world[i]) @ np.linalg.inv(sim) for i in range(len(reg))]
-        cams = []
-        for k in range(len(names)):
-            A, B = truth[names[k]], truth[names[(k + 1) % len(names)]]
-            K = np.asarray(A["K"], float).copy()
-            K[:2] *= 0.5  # _render_mask's scale
-            cams.append((K, _mid_camera(np.asarray(A["cam_to_world"]), np.asarray(B["cam_to_world"])),
-                         (round(A["size"][1] * 0.5), round(A["size"][0] * 0.5))))
-        for tag, KK, WW, mm in (("true_cameras", Kt, Wt, masks),
-                                ("sfm_cameras", [np.diag([m.shape[1] / w] * 2 + [1.0]) @ K_ for K_, w, m in
-                                                 zip(res.sfm.K, res.sfm.sizes[:, 0], [masks[i] for i in reg])],
-                                 Ws, [masks[i] for i in reg])):
-            hull = _hull_bound(KK, WW, mm, true_mesh.bounds(), cams)
-            hi = [(m & h).sum() / max((m | h).sum(), 1) for m, h in zip(novel_true, hull)]
-            scores[f"hull_bound_{tag}_iou_median"] = float(np.median(hi))
+        corners = (np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+                   - t) @ R / s
+        Ks = [np.diag([masks[i].shape[1] / w, masks[i].shape[1] / w, 1.0]) @ K
+              for i, K, w in zip(reg, res.sfm.K, res.sfm.sizes[:, 0])]
+        p_sfm, e_sfm = _exact_hull(Ks, res.sfm.cam_to_world, [masks[i] for i in reg],
+                                   (corners.min(0) - 0.5 / s, corners.max(0) + 0.5 / s), step / s)
+        for tag, (pts, size) in (("true_cameras", true_hull), ("sfm_cameras", (s * p_sfm @ R.T + t, s * e_sfm))):
+            hull_masks = _splat(pts, size, novel_cams)
+            scores[f"hull_bound_{tag}_iou_median"] = float(np.median(
+                [(m & h).sum() / max((m | h).sum(), 1) for m, h in zip(novel_true, hull_masks)]))
             scores[f"hull_bound_{tag}_extra_median"] = float(np.median(
-                [(h & ~m).sum() / max(m.sum(), 1) for m, h in zip(novel_true, hull)]))
+                [(h & ~m).sum() / max(m.sum(), 1) for m, h in zip(novel_true, hull_masks)]))
     scores["novel_view_iou_median"] = float(np.median(ious))
     scores["novel_view_iou_min"] = float(np.min(ious))
     # shares of the true silhouette's area: what the model adds, and what it misses
