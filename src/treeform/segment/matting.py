@@ -100,8 +100,21 @@ def kernels_to_compile() -> tuple[int, int]:
             return 0, 0
 
 
+_IMPORT_LOCK = threading.Lock()
+
+
 def _import_pymatting():
-    """Import PyMatting, first logging a notice when numba is about to compile its kernels."""
+    """Import PyMatting, first logging a notice when numba is about to compile its kernels.
+
+    One thread at a time: views are matted on threads, and a second thread that found the
+    module in ``sys.modules`` while the first was still importing it (or both importing numba
+    at once) failed ("module 'numba' has no attribute 'core'", seen once in the multi-view route).
+    """
+    with _IMPORT_LOCK:
+        return _import_pymatting_locked()
+
+
+def _import_pymatting_locked():
     if "pymatting" in sys.modules:
         return sys.modules["pymatting"]
     cold, total = kernels_to_compile()
