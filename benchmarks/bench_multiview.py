@@ -136,23 +136,10 @@ def _exact_hull(Ks, cam_to_world, masks, box, step: float):
 
 def _splat(points, size, cams):
     """Masks of cells (centres ``points``, edges ``size``) seen by ``cams`` = [(K, cam_to_world, (h, w))]."""
-    import cv2
+    from treeform.methods.multiview.coherence import splat_cells
 
-    out = []
-    for K, T, shape in cams:
-        W = np.linalg.inv(T)
-        uvw = (points @ W[:3, :3].T + W[:3, 3]) @ np.asarray(K, float).T
-        front = uvw[:, 2] > 0
-        u, v, z = uvw[front, 0] / uvw[front, 2], uvw[front, 1] / uvw[front, 2], uvw[front, 2]
-        half = np.round(0.5 * size[front] * K[0][0] / z).astype(int)
-        mask = np.zeros(shape, np.uint8)
-        iu, iv = np.floor(u).astype(int), np.floor(v).astype(int)
-        ok = (half == 0) & (iu >= 0) & (iu < shape[1]) & (iv >= 0) & (iv < shape[0])
-        mask[iv[ok], iu[ok]] = 1  # cells under a pixel: the pixel of their centre
-        for x, y, r in zip(iu[half > 0], iv[half > 0], half[half > 0]):
-            cv2.rectangle(mask, (int(x) - r, int(y) - r), (int(x) + r, int(y) + r), 1, -1)
-        out.append(mask > 0)
-    return out
+    return [splat_cells(points, 0.5 * np.asarray(size, float), np.asarray(K, float), np.linalg.inv(T), shape)
+            for K, T, shape in cams]
 
 
 def _render_mask(mesh, K, T, size, scale=0.5):

@@ -26,6 +26,10 @@ def multiview(
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
     masks: Optional[Path] = typer.Option(None, "--masks", help="Folder of per-photo mattes <photo stem>.png "
                                          "(labels 0/1/2 or white = tree) instead of the segmenter."),
+    refine_poses: bool = typer.Option(True, "--refine-poses/--no-refine-poses", help="Turn each camera so that "
+                                      "the other photos' visual hull fills its matte (silhouette coherence; the "
+                                      "SfM, held by the far scene, can leave every camera a few pixels off about "
+                                      "the tree)."),
     impostor: bool = typer.Option(False, "--impostor", help=IMPOSTOR_HELP),
     report: bool = typer.Option(False, "--report", help="Also write report.html: preview (the model beside three "
                                 "photos from their own cameras), metrics, stage times, the tree in a 3D viewer."),
@@ -35,7 +39,7 @@ def multiview(
 
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
                   leaf_texture=leaf_texture.value,
-                  height=height, segmenter=segmenter, masks=masks,
+                  height=height, segmenter=segmenter, masks=masks, refine_poses=refine_poses,
                   inputs=(("PHOTO_DIR", photos), ("--masks", masks)))
     m = res.metrics
     typer.echo(f"{m['registered']}/{m['photos']} photos registered, tree {m['tree_height_m']:.1f} m, "

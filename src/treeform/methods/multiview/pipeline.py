@@ -355,6 +355,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         The photos cannot be registered (see :mod:`treeform.sfm`).
     """
     import dataclasses
+    import time
 
     from treeform._shared.checks import check_known_options
     from treeform._shared.rng import as_rng
@@ -364,6 +365,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     from treeform.io.outputs import check_out_dir
     from treeform.methods.multiview.branch_graph import branch_skeleton
     from treeform.methods.multiview.carve import carve_tree, explain_wood, main_component, tree_pieces
+    from treeform.methods.multiview.coherence import refine_rotations
     from treeform.methods.multiview.trunk import trunk_axis, trunk_diameter
     from treeform.sfm import load_photos, run_sfm, to_tree_frame
     from treeform.structures import TreeSkeleton
@@ -392,11 +394,33 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     with timer.stage("carve"):
         axis, ring = _ring(sfm)
         lo, hi = _hull_box(sfm, axis, ring)
-        coarse = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
-                            tolerance=cfg.tolerance)
-        # the tree is the piece of the hull the cameras look at (a neighbouring tree or a hedge at the
-        # ring's edge, seen only by the cameras across the ring, can survive the carving too)
-        coarse = coarse.subset(main_component(coarse, axis, 0.35 * ring))
+
+        def coarse_hull():
+            hull = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
+                              tolerance=cfg.tolerance)
+            # the tree is the piece of the hull the cameras look at (a neighbouring tree or a hedge at the
+            # ring's edge, seen only by the cameras across the ring, can survive the carving too)
+            return hull.subset(main_component(hull, axis, 0.35 * ring))
+
+        coarse = coarse_hull()
+        if cfg.refine_poses and len(coarse) and sfm.n_cameras >= 4:
+            # the SfM's cameras agree with the far scene its points lie on, not quite about the tree:
+            # turn each so that the other views' hull fills its matte, then carve again
+            t0 = time.perf_counter()
+            pad = float(coarse.size.max())
+            ref = refine_rotations(K, sfm.cam_to_world, [lab > 0 for lab in labels],
+                                   (coarse.points.min(0) - pad, coarse.points.max(0) + pad))
+            shift = np.linalg.norm(ref.shifts, axis=1) / np.array([max(lab.shape) for lab in labels])
+            pose_refinement = {
+                "rounds": ref.iterations,
+                "shift_median_pct": round(100 * float(np.median(shift)), 4),
+                "shift_max_pct": round(100 * float(np.max(shift)), 4),
+                "outline_cost_before_px2": round(float(np.nanmedian(ref.cost_before)), 4),
+                "outline_cost_after_px2": round(float(np.nanmedian(ref.cost_after)), 4),
+                "seconds": round(time.perf_counter() - t0, 3)}
+            sfm = dataclasses.replace(sfm, cam_to_world=ref.cam_to_world,
+                                      meta={**sfm.meta, "pose_refinement": pose_refinement})
+            coarse = coarse_hull()
         if len(coarse) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
         foot, height = _tree_extent(coarse)
