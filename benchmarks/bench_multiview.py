@@ -2,12 +2,14 @@
 
     python benchmarks/bench_multiview.py [--views 24] [--size 1024] [--species oak] [--seed 0]
                                          [--mattes learned|classical|truth] [--capture DIR] [--out DIR]
+                                         [--no-peer] [--bound] [--no-refine-poses]
 
 Makes (or reuses) a `treeform dataset capture`, runs `treeform multiview` on its photos and
 scores the result against the truth:
 
 - SfM: registration rate, camera position / rotation error after a similarity fit of the
-  camera centres (`treeform.sfm.evaluate.pose_errors`);
+  camera centres (`treeform.sfm.evaluate.pose_errors`), and how far each camera puts the true
+  tree from where its true camera does (median over the views, pixels of the photos);
 - skeleton: the reconstruction mapped into the truth's frame by that similarity; mean and
   95th-percentile distance from reconstructed branch points to the true branches and back,
   for branches of radius >= 2 cm (as % of the true height too);
@@ -142,6 +144,24 @@ def _splat(points, size, cams):
             for K, T, shape in cams]
 
 
+def _tree_displacement(mesh, sfm, truth, s, R, t, every: int = 20) -> np.ndarray:
+    """Per registered view, the mean distance (pixels of the photo) between where its SfM camera and
+    its true camera put the true tree's vertices (mapped into the SfM's frame by the similarity
+    ``x -> s R x + t`` from the SfM's frame to the truth's). Sharper than the rotation error after a
+    fit of the centres: a camera turned about its centre moves the tree by its focal times the angle."""
+    P = np.concatenate([p.positions for p in mesh.parts if p.n_vertices])[::every]
+    Ps = (P - t) @ R / s
+
+    def proj(K, T, X):
+        W = np.linalg.inv(np.asarray(T, float))
+        uvw = (X @ W[:3, :3].T + W[:3, 3]) @ np.asarray(K, float).T
+        return uvw[:, :2] / uvw[:, 2:]
+
+    return np.array([np.linalg.norm(proj(sfm.K[i], sfm.cam_to_world[i], Ps) * (truth[n]["size"][0] / sfm.sizes[i, 0])
+                                    - proj(truth[n]["K"], truth[n]["cam_to_world"], P), axis=1).mean()
+                     for i, n in enumerate(sfm.names)])
+
+
 def _render_mask(mesh, K, T, size, scale=0.5):
     from treeform.render import Renderer
     from treeform.sfm import SfmResult
@@ -166,6 +186,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="keep the reconstruction here")
     ap.add_argument("--json", type=Path, default=None, help="write the scores here")
     ap.add_argument("--no-peer", action="store_true", help="skip pc-skeletor")
+    ap.add_argument("--no-refine-poses", action="store_true", help="keep the SfM's cameras (no silhouette coherence)")
     ap.add_argument("--leaf-texture", default="photo", choices=("photo", "procedural"))
     ap.add_argument("--bound", action="store_true",
                     help="also score the visual hull of the capture's true mattes at the novel views, seen by the "
@@ -193,7 +214,7 @@ def main(argv=None) -> int:
     res = reconstruct_multiview(cap / "images", out=a.out or tmp / "out", leaf_texture=a.leaf_texture,
                                 segmenter=a.mattes if a.mattes != "truth"
                                 else "learned", masks=cap / "truth" / "labels" if a.mattes == "truth" else None,
-                                seed=a.seed)
+                                seed=a.seed, refine_poses=not a.no_refine_poses)
     t_total = time.perf_counter() - t0
     pe = pose_errors(res.sfm, truth)
     s, R, t = pe["scale"], np.asarray(pe["rotation"]), np.asarray(pe["translation"])
@@ -237,6 +258,8 @@ def main(argv=None) -> int:
                                "peer_mean_pct": 100 * 0.5 * (e1.mean() + e2.mean()) / H})
     # novel views halfway between the input cameras
     true_mesh = _read_model(cap / "truth" / "tree.glb")
+    # each registered camera against its true one where it matters: where it puts the true tree
+    scores["tree_displacement_median_px"] = float(np.median(_tree_displacement(true_mesh, res.sfm, truth, s, R, t)))
     rec = Mesh([MeshPart(s * p.positions @ R.T + t, p.normals @ R.T, p.uvs, p.colors, p.indices, p.material, p.name)
                 for p in res.mesh.parts])
     names = sorted(truth)
