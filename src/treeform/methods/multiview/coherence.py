@@ -38,6 +38,9 @@ from treeform._shared.errors import InputError
 
 __all__ = ["PoseRefinement", "refine_rotations", "splat_cells"]
 
+MIN_OUTLINE = 20
+"""Fewest outline pixels a view's hull silhouette needs to be matched."""
+
 
 @dataclass
 class PoseRefinement:
@@ -50,7 +53,9 @@ class PoseRefinement:
     shifts : ndarray, shape (C, 2)
         Total image shift (dx, dy) applied to each camera, in pixels of its mask.
     cost_before, cost_after : ndarray, shape (C,)
-        Mean truncated squared outline distance (pixels²) of each view before and after.
+        Mean truncated squared distance (pixels²) from the outline of the other views' hull to
+        the view's matte outline, with the cameras as given and as returned (NaN for a view
+        whose hull has no outline to match).
     iterations : int
         Rounds run.
     """
@@ -131,7 +136,7 @@ def _outline_shift(S: np.ndarray, dist: np.ndarray, max_px: float, tau: float):
     from scipy.optimize import minimize
 
     ys, xs = np.nonzero(_outline(S))
-    if len(ys) < 20:
+    if len(ys) < MIN_OUTLINE:
         return None
     ys, xs = ys.astype(np.float64), xs.astype(np.float64)
 
@@ -148,6 +153,38 @@ def _outline_shift(S: np.ndarray, dist: np.ndarray, max_px: float, tau: float):
     if max(abs(dx), abs(dy)) >= max_px:
         return None
     return dx, dy, min(float(r.fun), c0), cost((0.0, 0.0))
+
+
+def _outline_cost(S: np.ndarray, dist: np.ndarray, tau: float) -> float:
+    """Mean truncated squared distance of ``S``'s outline to the outline of ``dist`` (NaN without one)."""
+    ys, xs = np.nonzero(_outline(S))
+    if len(ys) < MIN_OUTLINE:
+        return float("nan")
+    return float(np.mean(np.minimum(dist[ys, xs], tau) ** 2))
+
+
+def _view_memberships(P, half, K, w2c, masks):
+    """(C, N) bools: which views hold each cell centre, and which see it inside their mask."""
+    C = len(K)
+    inside = np.zeros((C, len(P)), bool)
+    seen = np.zeros((C, len(P)), bool)
+    for i in range(C):
+        X = P @ w2c[i, :3, :3].T + w2c[i, :3, 3]
+        z = X[:, 2]
+        zs = np.where(z > half, z, 1.0)
+        u = K[i, 0, 0] * X[:, 0] / zs + K[i, 0, 2]
+        v = K[i, 1, 1] * X[:, 1] / zs + K[i, 1, 2]
+        h, w = masks[i].shape
+        ok = (z > half) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+        seen[i] = ok
+        inside[i, ok] = masks[i][v[ok].astype(np.int64), u[ok].astype(np.int64)]
+    return inside, seen
+
+
+def _others_hull(i, inside, seen, tolerance, min_seen):
+    """Cells of the hull carved by every view but ``i`` (all but ``tolerance`` of those holding a cell)."""
+    others = seen.sum(0) - seen[i]
+    return (others >= min_seen) & ((inside.sum(0) - inside[i]) >= np.ceil((1.0 - tolerance) * others))
 
 
 def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iterations: int = 6,
@@ -218,50 +255,37 @@ def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iteration
     shifts = np.zeros((C, 2))
     cost0 = np.full(C, np.nan)
     cost1 = np.full(C, np.nan)
-    rounds = 0
+    rounds, turned = 0, False
     for it in range(int(iterations)):
         if progress is not None:
             progress(it, int(iterations))
         rounds = it + 1
         w2c = np.linalg.inv(c2w)
-        inside = np.zeros((C, len(P)), bool)
-        seen = np.zeros((C, len(P)), bool)
-        for i in range(C):
-            X = P @ w2c[i, :3, :3].T + w2c[i, :3, 3]
-            z = X[:, 2]
-            zs = np.where(z > half, z, 1.0)
-            u = K[i, 0, 0] * X[:, 0] / zs + K[i, 0, 2]
-            v = K[i, 1, 1] * X[:, 1] / zs + K[i, 1, 2]
-            h, w = masks[i].shape
-            ok = (z > half) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-            seen[i] = ok
-            inside[i, ok] = masks[i][v[ok].astype(np.int64), u[ok].astype(np.int64)]
+        inside, seen = _view_memberships(P, half, K, w2c, masks)
         if it == 0:
             # the grid shrinks to the cells near some view's hull (later rounds move it by pixels)
             near = inside.sum(0) >= np.ceil((1.0 - tolerance) * (seen.sum(0) - 1)) - 2
             P, inside, seen = P[near], inside[:, near], seen[:, near]
-        n_in, n_seen = inside.sum(0), seen.sum(0)
         step = np.full((C, 2), np.nan)
         centre = np.zeros(3)
         for i in range(C):
-            os_ = n_seen - seen[i]
-            hull = (os_ >= min_seen) & ((n_in - inside[i]) >= np.ceil((1.0 - tolerance) * os_))
+            hull = _others_hull(i, inside, seen, tolerance, min_seen)
             if not hull.any():
                 continue
             S = splat_cells(P[hull], half, K[i], w2c[i], masks[i].shape)
+            if it == 0:
+                cost0[i] = _outline_cost(S, dist[i], tau)
             # the first round searches the whole range, later ones what is left (a pixel or two)
             reach = max_shift * max(masks[i].shape)
             r = _outline_shift(S, dist[i], reach if it == 0 else min(reach, 2.5), tau)
             if r is None:
                 continue
             step[i] = r[:2]
-            if it == 0:
-                cost0[i] = r[3]
-            cost1[i] = r[2]
             centre += P[hull].mean(0)
         good = ~np.isnan(step[:, 0])
         if good.sum() < 4:
             break
+        turned = True
         centre /= good.sum()
         # remove what a translation of the tree would do to the views (3 unknowns over 2 per view)
         J = np.concatenate([K[i, 0, 0] / (w2c[i, :3, :3] @ centre + w2c[i, :3, 3])[2] * w2c[i, :2, :3]
@@ -280,4 +304,14 @@ def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iteration
             shifts[i] += step[i]
         if np.nanmax(np.abs(step)) < 0.05:
             break
+    # the outlines' distance as the cameras now stand (the same as before when none turned)
+    if turned:
+        w2c = np.linalg.inv(c2w)
+        inside, seen = _view_memberships(P, half, K, w2c, masks)
+        for i in range(C):
+            hull = _others_hull(i, inside, seen, tolerance, min_seen)
+            if hull.any():
+                cost1[i] = _outline_cost(splat_cells(P[hull], half, K[i], w2c[i], masks[i].shape), dist[i], tau)
+    else:
+        cost1 = cost0.copy()
     return PoseRefinement(c2w, shifts, cost0, cost1, rounds)
