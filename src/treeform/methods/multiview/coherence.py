@@ -129,8 +129,8 @@ def _outline(mask: np.ndarray) -> np.ndarray:
 def _outline_shift(S: np.ndarray, dist: np.ndarray, max_px: float, tau: float):
     """Shift (dx, dy) taking the outline of ``S`` onto the outline whose distance map is ``dist``.
 
-    Returns (dx, dy, cost at the shift, cost at zero), or None without an outline or when the
-    best shift lies at the edge of the search (no minimum within ``max_px``).
+    Returns (dx, dy), or None without an outline or when the best shift lies at the edge of the
+    search (no minimum within ``max_px``).
     """
     from scipy.ndimage import map_coordinates
     from scipy.optimize import minimize
@@ -146,13 +146,13 @@ def _outline_shift(S: np.ndarray, dist: np.ndarray, max_px: float, tau: float):
 
     n = int(math.floor(max_px))
     best = min((cost((a, b)), a, b) for a in range(-n, n + 1) for b in range(-n, n + 1))
-    c0, a, b = best
+    _, a, b = best
     r = minimize(cost, [a, b], method="Powell", bounds=[(a - 1, a + 1), (b - 1, b + 1)],
                  options={"xtol": 0.02, "ftol": 1e-9})
     dx, dy = (float(x) for x in r.x)
     if max(abs(dx), abs(dy)) >= max_px:
         return None
-    return dx, dy, min(float(r.fun), c0), cost((0.0, 0.0))
+    return dx, dy
 
 
 def _outline_cost(S: np.ndarray, dist: np.ndarray, tau: float) -> float:
@@ -181,10 +181,11 @@ def _view_memberships(P, half, K, w2c, masks):
     return inside, seen
 
 
-def _others_hull(i, inside, seen, tolerance, min_seen):
-    """Cells of the hull carved by every view but ``i`` (all but ``tolerance`` of those holding a cell)."""
-    others = seen.sum(0) - seen[i]
-    return (others >= min_seen) & ((inside.sum(0) - inside[i]) >= np.ceil((1.0 - tolerance) * others))
+def _others_hull(i, inside, seen, n_in, n_seen, tolerance, min_seen):
+    """Cells of the hull carved by every view but ``i`` (all but ``tolerance`` of those holding a cell);
+    ``n_in``, ``n_seen``: the column sums of ``inside`` and ``seen`` over all views."""
+    others = n_seen - seen[i]
+    return (others >= min_seen) & ((n_in - inside[i]) >= np.ceil((1.0 - tolerance) * others))
 
 
 def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iterations: int = 6,
@@ -266,10 +267,11 @@ def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iteration
             # the grid shrinks to the cells near some view's hull (later rounds move it by pixels)
             near = inside.sum(0) >= np.ceil((1.0 - tolerance) * (seen.sum(0) - 1)) - 2
             P, inside, seen = P[near], inside[:, near], seen[:, near]
+        n_in, n_seen = inside.sum(0), seen.sum(0)
         step = np.full((C, 2), np.nan)
         centre = np.zeros(3)
         for i in range(C):
-            hull = _others_hull(i, inside, seen, tolerance, min_seen)
+            hull = _others_hull(i, inside, seen, n_in, n_seen, tolerance, min_seen)
             if not hull.any():
                 continue
             S = splat_cells(P[hull], half, K[i], w2c[i], masks[i].shape)
@@ -280,7 +282,7 @@ def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iteration
             r = _outline_shift(S, dist[i], reach if it == 0 else min(reach, 2.5), tau)
             if r is None:
                 continue
-            step[i] = r[:2]
+            step[i] = r
             centre += P[hull].mean(0)
         good = ~np.isnan(step[:, 0])
         if good.sum() < 4:
@@ -308,8 +310,9 @@ def refine_rotations(K, cam_to_world, masks, box, *, cells: int = 128, iteration
     if turned:
         w2c = np.linalg.inv(c2w)
         inside, seen = _view_memberships(P, half, K, w2c, masks)
+        n_in, n_seen = inside.sum(0), seen.sum(0)
         for i in range(C):
-            hull = _others_hull(i, inside, seen, tolerance, min_seen)
+            hull = _others_hull(i, inside, seen, n_in, n_seen, tolerance, min_seen)
             if hull.any():
                 cost1[i] = _outline_cost(splat_cells(P[hull], half, K[i], w2c[i], masks[i].shape), dist[i], tau)
     else:

@@ -420,7 +420,8 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
                 "seconds": round(time.perf_counter() - t0, 3)}
             sfm = dataclasses.replace(sfm, cam_to_world=ref.cam_to_world,
                                       meta={**sfm.meta, "pose_refinement": pose_refinement})
-            coarse = coarse_hull()
+            if np.any(ref.shifts):  # none turned (too few views matched): the hull stands as carved
+                coarse = coarse_hull()
         if len(coarse) == 0:
             raise NoTreeFoundError("no tree found: the views' tree masks do not agree on any volume")
         foot, height = _tree_extent(coarse)
