@@ -188,6 +188,13 @@ def test_carve_texels_is_the_visual_hull_of_the_views_with_a_tolerance():
     keep = carve_texels(f, cams, [full, holed, full, full], 8, tolerance=0.0)[0]
     assert keep.shape == (8, 8) and keep[0, 0] == 1 and keep[4, 4] == 0 and 0 < keep.mean() < 1
     assert carve_texels(f, cams, [full, holed, full, full], 8, tolerance=0.3)[0].all()  # 1 of 4 views tolerated
+    # a spare view is tolerated whatever the share (0.05 of 4 views alone tolerates none), but not two
+    assert carve_texels(f, cams, [full, holed, full, full], 8, tolerance=0.05, spare=1)[0].all()
+    behind = carve_texels(f, cams, [full, full, holed, full], 8, tolerance=0.0)[0]
+    both = carve_texels(f, cams, [full, holed, holed, full], 8, tolerance=0.05, spare=1)[0]
+    assert np.array_equal(both, keep | behind) and not both.all()  # cut where both views see through
+    with pytest.raises(InputError, match="spare"):
+        carve_texels(f, cams, [full] * 4, 8, spare=-1)
     # a texel no view holds (all project outside the images) is kept: nothing says it is not tree
     far = Foliage([[500.0, 0, 0]], [[0, 0, 1]], [[0, 1, 0]], [1.0], [[1, 1, 1]])
     assert carve_texels(far, cams[:1], [np.zeros((64, 64), bool)], 4).all()

@@ -506,7 +506,7 @@ def choose_views(foliage: Foliage, cameras, masks, images=None, *,
 
 def views_leaf_atlas(foliage: Foliage, cameras, images, alphas, view, *, visible=None, shade=None,
                      kind: str = "cluster", tile: int | None = None, detail: float = 0.35, oblique: float = 0.3,
-                     masks=None, tolerance: float = 0.1, seed=0) -> tuple[np.ndarray, Foliage]:
+                     masks=None, tolerance: float = 0.1, spare: int = 0, seed=0) -> tuple[np.ndarray, Foliage]:
     """:func:`photo_leaf_atlas` over several photos: each card's tile is cut from its own view.
 
     Parameters
@@ -530,6 +530,8 @@ def views_leaf_atlas(foliage: Foliage, cameras, images, alphas, view, *, visible
         (:func:`carve_texels`), so the parts of a card that some views see through are transparent.
     tolerance : float
         Share of the views holding a texel that may see background there (:func:`carve_texels`).
+    spare : int
+        Views that may see background there whatever their share (:func:`carve_texels`).
 
     Returns
     -------
@@ -586,20 +588,20 @@ def views_leaf_atlas(foliage: Foliage, cameras, images, alphas, view, *, visible
         tex[cards] = _card_tiles(foliage, cards, cameras[k], images[k], alphas[k], vis[cards], dark[cards], tile=tile,
                                  oblique=oblique, shapes=shapes, pick=pick[cards], detail=detail)
     if masks is not None:
-        tex[..., 3] *= carve_texels(foliage, cameras, masks, tile, tolerance=tolerance)
+        tex[..., 3] *= carve_texels(foliage, cameras, masks, tile, tolerance=tolerance, spare=spare)
     atlas, rects = _pack(tex)
     return atlas, foliage.with_colors(foliage.color, uv=rects)
 
 
-def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: float = 0.1,
+def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: float = 0.1, spare: int = 0,
                  chunk: int = 2048) -> np.ndarray:
     """Which texels of each card lie inside every view's tree: the visual hull at the texels' resolution.
 
     Texel ``(row t, column s)`` of a card stands for the point ``p + s size right - t size up``
     (``s, t`` the texel centres in [-0.5, 0.5), the card's frame as
     :func:`~treeform.geometry.leaf_cards` draws it). A texel is kept when it falls on the tree
-    mask in all but ``tolerance`` of the views whose image holds it (a mask's errors and
-    occluders are tolerated): a card on the visual hull of a porous crown keeps the parts
+    mask in all but ``tolerance`` of the views whose image holds it, or all but ``spare`` of
+    them where that is more (a mask's errors and occluders are tolerated): a card on the visual hull of a porous crown keeps the parts
     every photo sees as tree, and what some photos see through goes.
 
     Parameters
@@ -612,6 +614,9 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
     tile : int
         Texels along a tile's edge.
     tolerance : float in [0, 0.5)
+    spare : int
+        Views that may see background at a kept texel however few views hold it: with a share
+        alone, ten views tolerate none at 0.05 and one mask's stray pixel cuts the texel.
     chunk : int
         Cards per batch (memory).
 
@@ -640,6 +645,7 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
     if not 0.0 <= float(tolerance) < 0.5:
         raise InputError(f"tolerance: expected a share in [0, 0.5), got {tolerance!r}")
     tile = check_int(tile, "tile", 1, 128)
+    spare = check_int(spare, "spare", 0, 1 << 16)
     m = len(foliage)
     keep = np.ones((m, tile, tile), np.uint8)
     if m == 0:
@@ -660,5 +666,6 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
             inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
             held += inside
             tree += inside & mk.ravel()[np.where(inside, v * w + u, 0).astype(np.int64)]
-        keep[sl] = (tree >= (1.0 - tolerance) * held).reshape(-1, tile, tile)
+        allowed = np.maximum(tolerance * held, spare)
+        keep[sl] = (held - tree <= allowed).reshape(-1, tile, tile)
     return keep

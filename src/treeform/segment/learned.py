@@ -250,7 +250,8 @@ def snap_to_edges(img: np.ndarray, p_tree: np.ndarray, side: int) -> np.ndarray:
 
 
 def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matting",
-                         fill_holes: float = HOLE_FRACTION, ground: bool = True, trunk: bool = True) -> Segmentation:
+                         fill_holes: float = HOLE_FRACTION, ground: bool = True, trunk: bool = True,
+                         side: int | None = None) -> Segmentation:
     """Segment the main tree of a photo with the learned network.
 
     Parameters
@@ -277,6 +278,9 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
         (:func:`~treeform.segment.classical.trunk_in_mask`: upright bark from the foot, by
         shape and colour). The network draws thin wood but often calls a wide or shaded
         trunk foliage; an autumn crown stays foliage either way.
+    side : int, optional
+        Long side, in pixels, at which the network sees the photo (default: the weights'
+        own, 320); the sharpness map and the edge snapping work at it too.
 
     Returns
     -------
@@ -305,7 +309,7 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     from treeform._shared.checks import check_choice
 
     check_choice(refine, "refine", REFINERS)
-    seg_net = Segmenter(weights)
+    seg_net = Segmenter(weights, side=side)
     p, p_tree = tree_probability(img, seg_net, guided=refine in ("guided", "matting"))
     # the main tree: the largest part, weighted by sharpness (a blurred tree behind loses)
     focus = focus_map(img, seg_net.side)

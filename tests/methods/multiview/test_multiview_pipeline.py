@@ -242,3 +242,11 @@ def test_the_evaluation_scores_the_multiview_tree_against_the_truth(run, tmp_pat
     for f in ("multiview_front.png", "multiview_side.png", "multiview.glb", "gt.glb", "envelope.glb"):
         assert (tmp_path / "case" / f).is_file()
     assert cap.out.exists()  # a case made from an existing capture does not remove it
+
+
+def test_matte_side_is_checked():
+    from treeform.methods.multiview.config import MultiviewConfig
+
+    assert MultiviewConfig().matte_side == 768 and MultiviewConfig(matte_side=0).matte_side == 0
+    with pytest.raises(InputError, match="matte_side"):
+        MultiviewConfig(matte_side=10).validate()

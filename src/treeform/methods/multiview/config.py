@@ -25,10 +25,18 @@ class MultiviewConfig:
     """Height of the camera above the ground in metres when no ``height`` is given (a phone at eye level)."""
     max_size: int = 1024
     """Long side of the photos for structure from motion (pixels)."""
-    mask_size: int = 512
-    """Long side of the photos for segmentation and carving (pixels)."""
+    mask_size: int = 768
+    """Long side of the photos for segmentation and carving (pixels). Finer mattes carve a finer hull
+    and open more of the crown's gaps (on the 24-view 1024-px oak capture, with ``matte_side`` the
+    same, novel-view IoU 0.775 at 512 (``matte_side`` 640), 0.782 at 640, 0.787 at 768, 0.797 at 1024,
+    which costs 60 s more than 768; BENCHMARKS.md)."""
     segmenter: str = "learned"
     """Tree matting per view: 'learned' (the network) or 'classical' (the colour rules)."""
+    matte_side: int = 768
+    """Long side, in pixels, at which the learned segmenter sees each view (its own default for a
+    single photo is 320): a tree that fills most of a capture's frame is seen closer to the scale of
+    its gaps and limbs (on the 24-view 1024-px oak capture, 512-px mattes: novel-view IoU 0.748 when
+    the network sees them at 320, 0.775 at 640; BENCHMARKS.md). 0: the segmenter's default."""
     thin_wood: bool = True
     """Add thin dark ridges against the sky near the tree to the segmenter's mattes as wood (the twigs
     its stride loses; the carving keeps those the views agree on). Not applied to ``--masks``."""
@@ -73,6 +81,8 @@ class MultiviewConfig:
         check_positive(self.eye_height, "eye_height")
         check_int(self.max_size, "max_size", 128, 8192)
         check_int(self.mask_size, "mask_size", 64, 4096)
+        if self.matte_side:
+            check_int(self.matte_side, "matte_side", 64, 4096)
         check_choice(self.segmenter, "segmenter", SEGMENTERS)
         for name in ("thin_wood", "tile_wood", "refine_poses"):
             if not isinstance(getattr(self, name), bool):

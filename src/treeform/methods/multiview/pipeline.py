@@ -56,20 +56,24 @@ the tree (:func:`~treeform.methods.multiview.carve.tree_pieces`; the gap the bra
 
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
-PHOTO_COVER = 0.29
+PHOTO_COVER = 0.15
 """The same for a photo tile carved by the views (:data:`TEXEL_TOLERANCE`): the views' gaps cut it,
-so its cards are 1.5x larger (on the 24-view oak capture, novel-view IoU 0.689 at 1x, 0.716 at
-1.5x, 0.718 at 1.8x; BENCHMARKS.md)."""
+so its cards are larger (on the 24-view oak capture, with the cameras turned and the carving of
+:data:`TEXEL_TOLERANCE` / :data:`TEXEL_SPARE`, novel-view IoU 0.735 at 0.29, 0.746 at 0.2, 0.748 at
+0.15, 0.746 at 0.1; BENCHMARKS.md)."""
 SHELL_SHARE = 0.9
 """Share of the leaf clusters placed on the crown's surface (the rest on the twigs inside)."""
 LEAF_SUPPORT = 0.92
 """A surface cell carries leaves when at least this share of the views that see it hold it."""
-TEXEL_TOLERANCE = 0.1
+TEXEL_TOLERANCE = 0.05
 """Share of the views holding a leaf texel that may see background there before it is cut
 (:func:`~treeform.crown.photo_leaves.carve_texels`)."""
+TEXEL_SPARE = 1
+"""Views that may see background at a kept texel however few views hold it (with 10 views, 0.05
+alone would tolerate none)."""
 TEXEL_DILATE = 1
 """Pixels by which the views' tree masks grow before the texels are carved against them (the
-cameras' registration is good to about a pixel at the mattes' size)."""
+cameras' registration is good to about a pixel at the mattes' size; 0: not grown)."""
 
 MATTE_THREADS = max(1, min(4, os.cpu_count() or 1))
 """Views matted at once (threads) by the matting stage."""
@@ -225,6 +229,7 @@ def _segment_views(views, sfm, cfg, masks=None):
 
     from treeform.segment import segment
     from treeform.segment.classical import sky_mask
+    from treeform.segment.learned import segment_tree_learned
     from treeform.segment.thin import thin_dark_lines
 
     by_name = {v.name: v for v in views}
@@ -243,7 +248,10 @@ def _segment_views(views, sfm, cfg, masks=None):
         if masks is not None:
             lab = _user_labels(masks, name, (small.shape[1], small.shape[0]))
         else:
-            lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
+            if cfg.segmenter == "learned":
+                lab = np.array(segment_tree_learned(small, side=cfg.matte_side or None).labels, np.uint8)
+            else:
+                lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
             if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
                 lab[_tile_wood(img, lab.shape, seg_net)] = 2
             if cfg.thin_wood:
@@ -364,7 +372,8 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     from treeform.growth.space_colonization import space_colonization
     from treeform.io.outputs import check_out_dir
     from treeform.methods.multiview.branch_graph import branch_skeleton
-    from treeform.methods.multiview.carve import carve_tree, explain_wood, main_component, tree_pieces
+    from treeform.methods.multiview.carve import (carve_tree, explain_wood, main_component, silhouette_fields,
+                                                  tree_pieces)
     from treeform.methods.multiview.coherence import refine_rotations
     from treeform.methods.multiview.trunk import trunk_axis, trunk_diameter
     from treeform.sfm import load_photos, run_sfm, to_tree_frame
@@ -395,9 +404,11 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         axis, ring = _ring(sfm)
         lo, hi = _hull_box(sfm, axis, ring)
 
+        fields = silhouette_fields(labels)  # the masks' distance maps, for all three carvings
+
         def coarse_hull():
             hull = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=float((hi - lo).max()) / 96.0,
-                              tolerance=cfg.tolerance)
+                              tolerance=cfg.tolerance, fields=fields)
             # the tree is the piece of the hull the cameras look at (a neighbouring tree or a hedge at the
             # ring's edge, seen only by the cameras across the ring, can survive the carving too)
             return hull.subset(main_component(hull, axis, 0.35 * ring))
@@ -450,7 +461,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         hi[[0, 2]] = np.minimum(hi[[0, 2]], 0.95 * ring)
         voxel = height / cfg.cells
         carved = carve_tree(K, sfm.cam_to_world, labels, box=(lo, hi), voxel=voxel, tolerance=cfg.tolerance,
-                            surface_voxel=max(voxel, height / cfg.surface_cells), images=images)
+                            surface_voxel=max(voxel, height / cfg.surface_cells), images=images, fields=fields)
         # only what lies in the coarse hull's tree piece
         if len(carved):
             from scipy.spatial import cKDTree
@@ -675,8 +686,9 @@ def _photo_leaves(foliage, sfm, images, labels, rng, seed):
     alphas = [ndi.gaussian_filter((lab == 1).astype(np.float32), 0.6) for lab in labels]
     white = foliage.with_colors(np.ones((len(foliage), 3)))
     atlas, foliage = views_leaf_atlas(white, cams, images, alphas, view, visible=visible, shade=shade, seed=seed,
-                                      masks=[ndi.binary_dilation(mk, iterations=TEXEL_DILATE) for mk in masks],
-                                      tolerance=TEXEL_TOLERANCE)
+                                      masks=[ndi.binary_dilation(mk, iterations=TEXEL_DILATE) if TEXEL_DILATE > 0 else mk
+                                             for mk in masks],
+                                      tolerance=TEXEL_TOLERANCE, spare=TEXEL_SPARE)
     return foliage, atlas
 
 
@@ -759,13 +771,15 @@ def _preview(mesh, sfm, images, labels):
     iou = []
     tiles, names = [], []
     show = sorted({0, n // 3, (2 * n) // 3})
-    renderer = None
+    renderers = {}  # the three shown views antialiased, the others' silhouettes at one sample (4x cheaper)
     try:
         for k in range(n):
             h, w = labels[k].shape
             cam = sfm.render_camera(k, near=0.1, far=1000.0, scale=w / sfm.sizes[k, 0])
-            if renderer is None:
-                renderer = Renderer(cam, samples=1 if k not in show else 4)
+            samples = 4 if k in show else 1
+            if samples not in renderers:
+                renderers[samples] = Renderer(cam, samples=samples)
+            renderer = renderers[samples]
             renderer.camera = cam
             res = renderer.render(mesh)
             m = res.mask[:h, :w] > 0
@@ -775,8 +789,8 @@ def _preview(mesh, sfm, images, labels):
                 tiles += [images[k], res.rgb((255, 255, 255))]
                 names += [f"photo {sfm.names[k]}", "model, same camera"]
     finally:
-        if renderer is not None:
-            renderer.release()
+        for r in renderers.values():
+            r.release()
     rows = [compose_strip(tiles[i:i + 2], labels=names[i:i + 2], height=300) for i in range(0, len(tiles), 2)]
     width = max(r.shape[1] for r in rows)
     rows = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in rows]
