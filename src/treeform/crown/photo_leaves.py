@@ -601,8 +601,9 @@ def carve_texels(foliage: Foliage, cameras, masks, tile: int, *, tolerance: floa
     (``s, t`` the texel centres in [-0.5, 0.5), the card's frame as
     :func:`~treeform.geometry.leaf_cards` draws it). A texel is kept when it falls on the tree
     mask in all but ``tolerance`` of the views whose image holds it, or all but ``spare`` of
-    them where that is more (a mask's errors and occluders are tolerated): a card on the visual hull of a porous crown keeps the parts
-    every photo sees as tree, and what some photos see through goes.
+    them where that is more (a mask's errors and occluders are tolerated): a card on the visual
+    hull of a porous crown keeps the parts every photo sees as tree, and what some photos see
+    through goes.
 
     Parameters
     ----------

@@ -14,10 +14,12 @@ __all__ = ["segment", "SEGMENTERS", "DEFAULT_SEGMENTER", "segment_tree", "segmen
            "mask_to_segmentation", "wood_colour_mask"]
 
 
-def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tree: bool = False):
+def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tree: bool = False,
+            side: int | None = None):
     """Segment the main tree of an (H, W, 3) uint8 photo with ``method`` ('learned' or 'classical').
 
-    The classical graph cut uses ``seed``; the network is deterministic. The colour rules
+    The classical graph cut uses ``seed``; the network is deterministic and sees the photo with
+    its long side at ``side`` pixels (None: its weights' own, 320; the colour rules ignore it). The colour rules
     find a "tree" in anything green or textured enough, random noise included: with
     ``require_tree`` (what the photo commands ask) the network is also asked whether the photo
     holds a tree at all (its mask and the main part only: no edge refinement, trunk or holes;
@@ -31,7 +33,7 @@ def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tr
     check_choice(method, "segmenter", SEGMENTERS)
     as_rng(seed)  # a negative or non-integer seed is one clear error, whichever segmenter runs
     if method == "learned":
-        return segment_tree_learned(image)
+        return segment_tree_learned(image, side=side)
     if not require_tree:
         return segment_tree(image, seed=seed)
     from concurrent.futures import ThreadPoolExecutor

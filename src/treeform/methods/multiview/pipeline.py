@@ -229,7 +229,6 @@ def _segment_views(views, sfm, cfg, masks=None):
 
     from treeform.segment import segment
     from treeform.segment.classical import sky_mask
-    from treeform.segment.learned import segment_tree_learned
     from treeform.segment.thin import thin_dark_lines
 
     by_name = {v.name: v for v in views}
@@ -248,10 +247,8 @@ def _segment_views(views, sfm, cfg, masks=None):
         if masks is not None:
             lab = _user_labels(masks, name, (small.shape[1], small.shape[0]))
         else:
-            if cfg.segmenter == "learned":
-                lab = np.array(segment_tree_learned(small, side=cfg.matte_side or None).labels, np.uint8)
-            else:
-                lab = np.array(segment(small, method=cfg.segmenter, seed=cfg.seed).labels, np.uint8)
+            seg = segment(small, method=cfg.segmenter, seed=cfg.seed, side=cfg.matte_side or None)
+            lab = np.array(seg.labels, np.uint8)
             if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
                 lab[_tile_wood(img, lab.shape, seg_net)] = 2
             if cfg.thin_wood:
@@ -686,8 +683,8 @@ def _photo_leaves(foliage, sfm, images, labels, rng, seed):
     alphas = [ndi.gaussian_filter((lab == 1).astype(np.float32), 0.6) for lab in labels]
     white = foliage.with_colors(np.ones((len(foliage), 3)))
     atlas, foliage = views_leaf_atlas(white, cams, images, alphas, view, visible=visible, shade=shade, seed=seed,
-                                      masks=[ndi.binary_dilation(mk, iterations=TEXEL_DILATE) if TEXEL_DILATE > 0 else mk
-                                             for mk in masks],
+                                      masks=[ndi.binary_dilation(mk, iterations=TEXEL_DILATE) if TEXEL_DILATE
+                                             else mk for mk in masks],
                                       tolerance=TEXEL_TOLERANCE, spare=TEXEL_SPARE)
     return foliage, atlas
 

@@ -2,11 +2,12 @@
 
 The views' mattes are made at ``mask_size`` by a network that sees each whole photo at once
 (``matte_side``): a trunk a few pixels wide comes out wider than it is (2.5-3x with 512-px mattes
-seen at 320 px), and the lower trunk is often lost in front of a busy park. Here the trunk's axis (the visible skeleton's, down to the
-ground) is projected into every registered photo, the photo is cut around its lower part at
-full resolution and the segmentation network run on that crop alone, so the trunk fills
-several of the network's pixels; in each image row the tree run that crosses the axis is the
-trunk's width there, turned into metres by the axis' depth in that camera.
+seen at 320 px), and the lower trunk is often lost in front of a busy park. Here the trunk's
+axis (the visible skeleton's, down to the ground) is projected into every registered photo, the
+photo is cut around its lower part at full resolution and the segmentation network run on that
+crop alone, so the trunk fills several of the network's pixels; in each image row the tree run
+that crosses the axis is the trunk's width there, turned into metres by the axis' depth in that
+camera.
 """
 
 from __future__ import annotations
