@@ -27,9 +27,9 @@ def multiview(
     masks: Optional[Path] = typer.Option(None, "--masks", help="Folder of per-photo mattes <photo stem>.png "
                                          "(labels 0/1/2 or white = tree) instead of the segmenter."),
     mask_size: int = typer.Option(768, "--mask-size", help="Long side of each photo's matte in pixels, 64-4096 "
-                                  "(the network sees it at this size too): finer mattes open more of the crown's "
-                                  "gaps and keep thinner limbs, and take longer (24 photos of 1024 px: 512 about "
-                                  "15 s faster, 1024 about a minute slower than 768)."),
+                                  "(the network sees it at 1.25 times this size): finer mattes open more of the "
+                                  "crown's gaps and keep thinner limbs, and take longer (24 photos of 1024 px: "
+                                  "512 about 15 s faster, 1024 about a minute slower than 768)."),
     refine_poses: bool = typer.Option(True, "--refine-poses/--no-refine-poses", help="Turn each camera so that "
                                       "the other photos' visual hull fills its matte (silhouette coherence; the "
                                       "SfM, held by the far scene, can leave every camera a few pixels off about "
@@ -44,7 +44,7 @@ def multiview(
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
                   leaf_texture=leaf_texture.value,
                   height=height, segmenter=segmenter, masks=masks, refine_poses=refine_poses,
-                  mask_size=mask_size, matte_side=mask_size,
+                  mask_size=mask_size,
                   inputs=(("PHOTO_DIR", photos), ("--masks", masks)))
     m = res.metrics
     typer.echo(f"{m['registered']}/{m['photos']} photos registered, tree {m['tree_height_m']:.1f} m, "

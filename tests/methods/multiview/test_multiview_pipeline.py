@@ -244,9 +244,44 @@ def test_the_evaluation_scores_the_multiview_tree_against_the_truth(run, tmp_pat
     assert cap.out.exists()  # a case made from an existing capture does not remove it
 
 
-def test_matte_side_is_checked():
+def test_matte_side_and_sky_gaps_are_checked():
     from treeform.methods.multiview.config import MultiviewConfig
 
-    assert MultiviewConfig().matte_side == 768 and MultiviewConfig(matte_side=0).matte_side == 0
+    assert MultiviewConfig().matte_side is None and MultiviewConfig(matte_side=0).validate().matte_side == 0
     with pytest.raises(InputError, match="matte_side"):
         MultiviewConfig(matte_side=10).validate()
+    with pytest.raises(InputError, match="sky_gaps"):
+        MultiviewConfig(sky_gaps="yes").validate()
+
+
+def test_mattes_are_seen_closer_and_open_the_sky_gaps(run, monkeypatch):
+    """The network sees each matte at 1.25x its size; foliage coloured like the sky above the tree goes."""
+    from types import SimpleNamespace
+
+    import treeform.methods.multiview.pipeline as mv
+    import treeform.segment as seg_mod
+    from treeform.methods.multiview.config import MultiviewConfig
+    from treeform.sfm.photos import load_photos
+
+    views = load_photos(sorted((run[0].out / "images").iterdir())[:3])
+    sfm = SimpleNamespace(names=[v.name for v in views],
+                          sizes=np.array([[v.image.shape[1], v.image.shape[0]] for v in views]))
+    seen, real = [], seg_mod.segment
+
+    def spy(image, **kw):
+        seen.append((max(image.shape[:2]), kw.get("side")))
+        return real(image, **kw)
+
+    monkeypatch.setattr(seg_mod, "segment", spy)
+    on = mv._segment_views(views, sfm, MultiviewConfig(mask_size=320))
+    assert seen and all(side == round(1.25 * n) for n, side in seen)
+    off = mv._segment_views(views, sfm, MultiviewConfig(mask_size=320, sky_gaps=False))
+    cut = 0
+    for a, b, img in zip(on[0], off[0], on[1]):
+        assert np.array_equal(a == 2, b == 2) and not ((a > 0) & (b == 0)).any()  # only foliage goes
+        gone = (b == 1) & (a == 0)
+        cut += int(gone.sum())
+        if gone.sum() >= 20:  # what goes is brighter than the foliage that stays (sky, not leaves)
+            grey = img.astype(float).mean(axis=2)
+            assert np.median(grey[gone]) > np.median(grey[a == 1]) + 20
+    assert cut > 0

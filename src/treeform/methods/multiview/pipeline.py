@@ -6,10 +6,12 @@ Stages, each one call into a domain folder or a sibling module:
    pycolmap on the CPU with the EXIF focal prior; the largest model.
 2. **frame** (§3): up = the cameras' mean up, the ground plane from the lowest points,
    metres from ``height`` or from the cameras' eye height, origin at the trunk's foot.
-3. **matting** (§4.1): the project's segmenter on every registered view, plus the wood the
-   network sees on full-size tiles of the photo (:func:`_tile_wood`: the limbs it loses when it
-   sees the photo whole at 320 px) and thin dark ridges against the sky near the tree as wood
-   (:func:`treeform.segment.thin.thin_dark_lines`: the twigs a segmenter's stride loses).
+3. **matting** (§4.1): the project's segmenter on every registered view (the network seeing it
+   at 1.25x the matte's size), plus the wood the network sees on full-size tiles of the photo
+   (:func:`_tile_wood`: the limbs it loses when it sees the photo whole) and thin dark ridges
+   against the sky near the tree as wood (:func:`treeform.segment.thin.thin_dark_lines`: the
+   twigs a segmenter's stride loses), less the foliage coloured like the sky above the tree
+   (:func:`treeform.segment.matting.sky_gaps`: the small gaps it fills in).
 4. **points and partition** (§4.1–4.2): :func:`carve.carve_tree` — the tree's points as
    the visual hull of the mattes (the piece the cameras look at, :func:`carve.main_component`;
    at the fine cells its pieces in the trunk's column and near them, :func:`carve.tree_pieces`),
@@ -41,7 +43,7 @@ import numpy as np
 
 from treeform._shared.errors import InputError, NoTreeFoundError
 from treeform._shared.timing import ProgressCallback, StageTimer
-from treeform.methods.multiview.config import MultiviewConfig
+from treeform.methods.multiview.config import MATTE_ZOOM, MultiviewConfig
 
 __all__ = ["MIN_GROUND_POINTS", "MIN_VIEW_IOU", "STAGES", "MultiviewResult", "consistency_warning",
            "reconstruct_multiview", "registration_warning", "scale_warning"]
@@ -229,7 +231,9 @@ def _segment_views(views, sfm, cfg, masks=None):
 
     from treeform.segment import segment
     from treeform.segment.classical import sky_mask
+    from treeform.segment.matting import sky_gaps
     from treeform.segment.thin import thin_dark_lines
+    from treeform.structures import Segmentation
 
     by_name = {v.name: v for v in views}
     seg_net = None
@@ -247,7 +251,8 @@ def _segment_views(views, sfm, cfg, masks=None):
         if masks is not None:
             lab = _user_labels(masks, name, (small.shape[1], small.shape[0]))
         else:
-            seg = segment(small, method=cfg.segmenter, seed=cfg.seed, side=cfg.matte_side or None)
+            side = round(MATTE_ZOOM * max(small.shape[:2])) if cfg.matte_side is None else cfg.matte_side
+            seg = segment(small, method=cfg.segmenter, seed=cfg.seed, side=side or None)
             lab = np.array(seg.labels, np.uint8)
             if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
                 lab[_tile_wood(img, lab.shape, seg_net)] = 2
@@ -256,6 +261,11 @@ def _segment_views(views, sfm, cfg, masks=None):
                 # sky near the tree become wood; the carving keeps only those the views agree on
                 # in 3D (a power line or a roof edge behind the tree agrees with nothing)
                 lab[thin_dark_lines(small, lab > 0, against=sky_mask(small)) & (lab == 0)] = 2
+            if cfg.sky_gaps:
+                # the segmenter fills the small gaps through the crown: its foliage coloured like the
+                # sky above the tree is sky (wood and the thin ridges stay; the carving needs two views
+                # to agree before a gap cuts a leaf)
+                lab[sky_gaps(small, Segmentation(lab), ratio=3.0) & (lab == 1)] = 0
         return lab, small, small.shape[1] / sfm.sizes[k, 0]
 
     with ThreadPoolExecutor(max_workers=max(1, min(MATTE_THREADS, len(sfm.names)))) as pool:
