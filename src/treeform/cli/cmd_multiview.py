@@ -7,7 +7,8 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import app, IMPOSTOR_HELP, LeafTexture, Lod, run_api, seed_option, write_impostor, write_report
+from treeform.cli.app import (app, IMPOSTOR_HELP, LeafPlacement, LeafTexture, Lod, run_api, seed_option, write_impostor,
+                              write_report)
 
 
 @app.command()
@@ -21,6 +22,10 @@ def multiview(
                                              "own crown, each card from the photo that sees it best and carved "
                                              "against every view ('photo', default), or drawn clusters tinted with "
                                              "the photos' colours ('procedural': a smaller GLB)."),
+    leaf_placement: LeafPlacement = typer.Option(LeafPlacement.surface, "--leaf-placement", help="Where the leaves "
+                                                 "go: on the crown surface the photos carve ('surface', default), "
+                                                 "or from each photo's leaf regions as seed 002 §6 does (mean "
+                                                 "shift, ellipses, placed on the hull, de-duplicated; 'segments')."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
@@ -42,7 +47,7 @@ def multiview(
     from treeform.methods.multiview.pipeline import STAGES, reconstruct_multiview
 
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
-                  leaf_texture=leaf_texture.value,
+                  leaf_texture=leaf_texture.value, leaf_placement=leaf_placement.value,
                   height=height, segmenter=segmenter, masks=masks, refine_poses=refine_poses,
                   mask_size=mask_size,
                   inputs=(("PHOTO_DIR", photos), ("--masks", masks)))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform.segment.classical import _check_image
 
 __all__ = ["thin_dark_lines", "tubeness"]
 
@@ -104,9 +105,7 @@ def thin_dark_lines(image, near, *, against=None, threshold: float = 0.04, sigma
     from scipy.ndimage import binary_dilation
     from skimage.morphology import convex_hull_image
 
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise InputError(f"image: expected an (H, W, 3) uint8 array, got {img.shape} {img.dtype}")
+    img = _check_image(image, min_side=1)
     near = np.asarray(near, bool)
     if near.shape != img.shape[:2]:
         raise InputError(f"near: expected shape {img.shape[:2]}, got {near.shape}")

@@ -285,3 +285,31 @@ def test_mattes_are_seen_closer_and_open_the_sky_gaps(run, monkeypatch):
             grey = img.astype(float).mean(axis=2)
             assert np.median(grey[gone]) > np.median(grey[a == 1]) + 20
     assert cut > 0
+
+
+def test_leaves_from_the_photos_leaf_regions(run, tmp_path):
+    """leaf_placement='segments' (seed 002 §6): leaves from each view's regions, placed on the hull,
+    de-duplicated, the sparse branches synthesized; same seed, same model."""
+    from scipy.spatial import cKDTree
+
+    from treeform.methods.multiview.pipeline import reconstruct_multiview
+
+    cap, base, _ = run
+    kw = dict(mask_size=320, leaves=1500, lod="low", segmenter="learned", seed=0, cells=200, surface_cells=100,
+              leaf_texture="procedural", leaf_placement="segments")
+    res = reconstruct_multiview(cap.out / "images", out=tmp_path / "a", **kw)
+    st = res.metrics["leaf_regions"]
+    assert st["from_regions"] > 100 and st["duplicates"] > 0
+    assert res.metrics["leaves"] == len(res.foliage) == st["from_regions"] + st["synthesized"] <= 1500
+    f = res.foliage
+    assert np.allclose(np.linalg.norm(f.normals, axis=1), 1, atol=1e-5)
+    assert np.allclose(np.sum(f.normals * f.up, axis=1), 0, atol=1e-5)
+    # the leaves from the regions lie on the carved hull (a leaf point, or the skeleton where none is)
+    leaf_pts = res.carved.points[~res.branch]
+    d = np.minimum(cKDTree(leaf_pts).query(f.positions[:st["from_regions"]])[0],
+                   cKDTree(res.skeleton.positions).query(f.positions[:st["from_regions"]])[0])
+    assert np.percentile(d, 99) < 1e-6 + 0.02 * res.metrics["hull_height_m"]
+    assert (tmp_path / "a" / "tree.glb").is_file()
+    again = reconstruct_multiview(cap.out / "images", out=tmp_path / "b", **kw)
+    assert np.array_equal(again.foliage.positions, f.positions)
+    assert res.metrics["leaf_regions"] is not None and base.metrics["leaf_regions"] is None

@@ -7,10 +7,13 @@ from dataclasses import asdict, dataclass
 from treeform._shared.checks import check_choice, check_height, check_int, check_positive
 from treeform._shared.errors import InputError
 
-__all__ = ["MultiviewConfig", "LEAF_TEXTURES", "MATTE_ZOOM"]
+__all__ = ["MultiviewConfig", "LEAF_PLACEMENTS", "LEAF_TEXTURES", "MATTE_ZOOM"]
 
 LEAF_TEXTURES = ("photo", "procedural")
 """Leaf card textures of the multi-view route."""
+
+LEAF_PLACEMENTS = ("surface", "segments")
+"""Leaf placements of the multi-view route (``MultiviewConfig.leaf_placement``)."""
 
 MATTE_ZOOM = 1.25
 """Default of ``matte_side``: the network sees each matte at this many times its long side."""
@@ -76,6 +79,13 @@ class MultiviewConfig:
     capture, 0.642 -> 0.735 on its 480-px twin, side IoU better on 4 of the evaluation's 6 registered
     captures; BENCHMARKS.md); 'procedural': drawn leaf clusters tinted with the photos' colours (a GLB
     of about 5 MB instead of 13 MB at 15,000 clusters)."""
+    leaf_placement: str = "surface"
+    """Where the leaf clusters go. 'surface': on the crown's surface the views' silhouettes carve, in
+    proportion to its area, the rest on the grown twigs. 'segments': seed 002 §6 -- each view's foliage
+    cut into leaf regions (mean shift in LUV, split or merge, the brightest colour clusters, ellipses),
+    each placed on the leaf point along its centroid's line of sight and turned to the SVD plane of the
+    points seen in it, de-duplicated across views, and the sparsest third of the branches given the
+    leaves of the densest (:mod:`treeform.methods.multiview.leaf_segments`)."""
     lod: str = "medium"
     """Triangle budget (see treeform.geometry.LOD_PRESETS)."""
 
@@ -103,6 +113,7 @@ class MultiviewConfig:
         check_positive(self.direction_weight, "direction_weight", allow_zero=True)
         check_int(self.leaves, "leaves", 0, 1_000_000)
         check_choice(self.leaf_texture, "leaf_texture", LEAF_TEXTURES)
+        check_choice(self.leaf_placement, "leaf_placement", LEAF_PLACEMENTS)
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))
         return self
 

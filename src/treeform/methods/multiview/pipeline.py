@@ -541,7 +541,19 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         skeleton = TreeSkeleton(pos, par, radius, branch_orders(par, radius))
         skeleton.meta.update({"method": "multiview", "visible_nodes": int(visible.n_nodes)})
     with timer.stage("leaves"):
-        foliage = _leaves(carved, branch, skeleton, height, cfg, rng)
+        leaf_stats = None
+        if cfg.leaf_placement == "segments":
+            from treeform.methods.multiview.leaf_segments import segmented_leaves
+
+            leaf = ~branch
+            foliage, leaf_stats = segmented_leaves(
+                carved.points[leaf], skeleton, K, sfm.cam_to_world, labels, images,
+                size=_leaf_size(carved.points[leaf], max(1, round(SHELL_SHARE * cfg.leaves)), height),
+                leaves=cfg.leaves, rng=rng, seed=cfg.seed,
+                card_scale=np.sqrt(COVER / PHOTO_COVER) if cfg.leaf_texture == "photo" else 1.0,
+                threads=MATTE_THREADS)
+        else:
+            foliage = _leaves(carved, branch, skeleton, height, cfg, rng)
         leaf_tex = None
         if cfg.leaf_texture == "photo" and len(foliage):
             foliage, leaf_tex = _photo_leaves(foliage, sfm, images, labels, rng, cfg.seed)
@@ -585,7 +597,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "photos": len(views), "registered": sfm.n_cameras, "unregistered": list(sfm.unregistered),
         "sfm_points": len(sfm.points), "carved_cells": len(carved),
         "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
-        "leaves": len(foliage), "triangles": mesh.n_triangles,
+        "leaves": len(foliage), "triangles": mesh.n_triangles, "leaf_regions": leaf_stats,
         # the model's own top above the ground (y = 0): the carved hull's (hull_height_m) stands higher,
         # a tent over the crown that eye-level views cannot carve away
         "tree_height_m": round(float(mesh.bounds()[1][1]), 4), "hull_height_m": round(float(height), 4),

@@ -1,0 +1,301 @@
+"""Leaves from the photos' leaf regions (seed 002 §6.2): placed on the 3D points, de-duplicated, synthesized.
+
+Each registered view's foliage is cut into candidate leaves
+(:func:`treeform.segment.leaf_regions.leaf_regions`: mean shift in LUV, split or merge,
+the brightest colour clusters, an ellipse per region). A kept region becomes a leaf at the
+carved leaf point nearest the camera along the line of sight of its centroid (the tree's
+skeleton nodes where no leaf point lies on it), facing the plane the SVD fits to the leaf
+points seen inside the region when more than three are, else parallel to the image plane
+with its major axis along the ellipse's; its card as large as the ellipse at that depth.
+Views do not share regions, so one leaf comes back from several views: leaves within half a
+leaf's width of a larger one go. Last, the branches with the fewest leaves per metre (the
+bottom third) get the leaves of a branch among the densest third, turned and scaled onto
+them (the paper's synthesis of the leaves the photos do not cover).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["segmented_leaves", "branch_chains", "synthesize_sparse"]
+
+
+def branch_chains(parent: np.ndarray) -> np.ndarray:
+    """(N,) chain index of each node: runs of nodes between forks (the root's chain is 0)."""
+    parent = np.asarray(parent)
+    n = len(parent)
+    children = np.bincount(parent[parent >= 0], minlength=n)
+    chain = np.zeros(n, np.int64)
+    nxt = 1
+    for i in range(1, n):  # parents come before their children
+        p = parent[i]
+        if p < 0 or children[p] != 1:
+            chain[i] = nxt
+            nxt += 1
+        else:
+            chain[i] = chain[p]
+    return chain
+
+
+def synthesize_sparse(positions: np.ndarray, node: np.ndarray, skeleton, rng, *, inside=None,
+                      skip_chain0: bool = True):
+    """Leaves for the sparsest third of the branches, copied from the densest third (seed 002 §6.2).
+
+    ``inside`` (N,) bool, optional: the skeleton's nodes in the crown's leaf volume; only branches
+    with a node there are synthesized or copied (a bare limb below the crown stays bare: the
+    photos would show its leaves). Returns ``(idx, new_positions, new_node)``: each synthesized
+    leaf copies leaf ``idx`` (its orientation, size and colour) at ``new_positions`` on twig
+    ``new_node``.
+    """
+    pos = np.asarray(skeleton.positions, np.float64)
+    par = np.asarray(skeleton.parent)
+    chain = branch_chains(par)
+    seg = np.where(par >= 0, np.linalg.norm(pos - pos[np.maximum(par, 0)], axis=1), 0.0)
+    nc = int(chain.max()) + 1
+    length = np.bincount(chain, seg, nc)
+    count = np.bincount(chain[node], minlength=nc)
+    cand = np.flatnonzero(length > 0)
+    if skip_chain0:
+        cand = cand[cand != chain[0]]
+    if inside is not None:
+        cand = cand[np.bincount(chain, np.asarray(inside, np.float64), nc)[cand] > 0]
+    if len(cand) < 3 or not count[cand].any():
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64)
+    density = count[cand] / length[cand]
+    order = cand[np.argsort(density, kind="stable")]
+    third = len(order) // 3
+    sparse, dense = order[:third], order[-third:]
+    dense = dense[count[dense] > 0]
+    if not len(dense) or not len(sparse):
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64)
+    # each chain's start (its first node's parent) and end (its last node)
+    first = np.full(nc, -1)
+    last = np.full(nc, -1)
+    for i in range(len(par)):
+        if first[chain[i]] < 0:
+            first[chain[i]] = i
+        last[chain[i]] = i
+    start = np.where(par[first] >= 0, par[np.maximum(first, 0)], first)
+    leaf_chain = chain[node]
+    idx, new_pos, new_node = [], [], []
+    for c in sparse:
+        # an exemplar of about the branch's length (its leaves are scaled by the ratio of the lengths)
+        ratio = length[dense] / length[c]
+        like = dense[(ratio > 0.5) & (ratio < 2.0)]
+        e = like[rng.integers(len(like))] if len(like) else dense[np.argmin(np.abs(np.log(ratio)))]
+        a0, a1 = pos[start[e]], pos[last[e]]
+        b0, b1 = pos[start[c]], pos[last[c]]
+        va, vb = a1 - a0, b1 - b0
+        la, lb = np.linalg.norm(va), np.linalg.norm(vb)
+        if la < 1e-9 or lb < 1e-9:
+            continue
+        R = _rotation(va / la, vb / lb)
+        mine = np.flatnonzero(leaf_chain == e)
+        p = (positions[mine] - a0) @ R.T * (lb / la) + b0
+        nodes_c = np.flatnonzero(chain == c)
+        near = nodes_c[np.argmin(np.linalg.norm(pos[nodes_c][None] - p[:, None], axis=2), axis=1)]
+        idx.append(mine)
+        new_pos.append(p)
+        new_node.append(near)
+    if not idx:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64)
+    return np.concatenate(idx), np.concatenate(new_pos), np.concatenate(new_node)
+
+
+def _rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation taking unit vector ``a`` onto unit vector ``b`` (about their common normal)."""
+    v, c = np.cross(a, b), float(np.dot(a, b))
+    if c < -1 + 1e-9:  # opposite: a half turn about any axis normal to a
+        n = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        n /= np.linalg.norm(n)
+        return 2.0 * np.outer(n, n) - np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def _view_leaves(k, pts, skel_pts, K, w2c, c2w, lab, img, size, seed):
+    """The leaves one view's regions give: (positions, normals, up, size, colour, area)."""
+    from scipy.spatial import cKDTree
+
+    from treeform.methods.multiview.carve import _pixels, _project
+    from treeform.segment.leaf_regions import leaf_regions
+
+    h, w = lab.shape
+    foliage = lab == 1
+    ok, row, col, z = _pixels(pts, w2c, K, (h, w))
+    ok &= foliage[row, col]
+    if ok.sum() < 4:
+        return None
+    f = float(K[0, 0])
+    depth = float(np.median(z[ok]))
+    side_px = size * f / depth
+    regions = leaf_regions(img, foliage, leaf_area=max(4.0, side_px * side_px), seed=seed)
+    keep = np.flatnonzero(regions.kept)
+    if not len(keep):
+        return None
+    # the point nearest the camera on each pixel (a z-buffer of the points), then the nearest within
+    # ``reach`` pixels of each region's centroid: the leaf point on its line of sight
+    ids = np.flatnonzero(ok)
+    pix = row[ids] * w + col[ids]
+    order = np.lexsort((z[ids], pix))
+    first = np.r_[True, pix[order][1:] != pix[order][:-1]]
+    zbuf = np.full(h * w, -1, np.int64)
+    zbuf[pix[order][first]] = ids[order][first]
+    cen = regions.centroid[keep]
+    rad = np.maximum(1.0, regions.axes[keep, 1])
+    reach = 2
+    cx = np.clip(np.round(cen[:, 0]).astype(np.int64), 0, w - 1)
+    cy = np.clip(np.round(cen[:, 1]).astype(np.int64), 0, h - 1)
+    anchor = np.full(len(keep), -1)
+    best = np.full(len(keep), np.inf)
+    for dy in range(-reach, reach + 1):
+        for dx in range(-reach, reach + 1):
+            x, y = cx + dx, cy + dy
+            inb = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            cand = np.where(inb, zbuf[np.clip(y, 0, h - 1) * w + np.clip(x, 0, w - 1)], -1)
+            zc = np.where(cand >= 0, z[np.maximum(cand, 0)], np.inf)
+            better = zc < best
+            anchor[better], best[better] = cand[better], zc[better]
+    pos = np.full((len(keep), 3), np.nan)
+    got = anchor >= 0
+    pos[got] = pts[anchor[got]]
+    zs = np.full(len(keep), np.nan)
+    zs[got] = z[anchor[got]]
+    if len(skel_pts) and (~got).any():  # no leaf point on the line of sight: the nearest branch on it
+        sok, _, _, sz = _pixels(skel_pts, w2c, K, (h, w))
+        suv = _project(skel_pts, w2c, K)[0]
+        if sok.any():
+            st = cKDTree(suv[sok])
+            sids = np.flatnonzero(sok)
+            miss = np.flatnonzero(~got)
+            for j, hs in zip(miss, st.query_ball_point(cen[miss], 2.0 * rad[miss])):
+                if hs:
+                    c = sids[hs][np.argmin(sz[sids[hs]])]
+                    pos[j], zs[j] = skel_pts[c], sz[c]
+    placed = np.isfinite(zs)
+    if not placed.any():
+        return None
+    keep, cen, pos, zs = keep[placed], cen[placed], pos[placed], zs[placed]
+    R = c2w[:3, :3]
+    toward = c2w[:3, 3][None] - pos
+    toward /= np.linalg.norm(toward, axis=1, keepdims=True)
+    ang = regions.angle[keep]
+    up = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], 1) @ R.T  # the ellipse's major axis
+    normal = toward.copy()
+    # SVD of the leaf points seen inside each region, near its leaf's depth: the leaf's plane
+    reg = np.full(len(regions), -1)
+    reg[keep] = np.arange(len(keep))
+    r_of = np.where(ok, regions.labels[row, col], -1)
+    r_of = np.where(r_of >= 0, reg[np.maximum(r_of, 0)], -1)
+    near = r_of >= 0
+    near[near] = np.abs(z[near] - zs[r_of[near]]) <= 2.0 * size
+    j = r_of[near]
+    if len(j):
+        p = pts[near]
+        n = np.bincount(j, minlength=len(keep)).astype(np.float64)
+        mean = np.stack([np.bincount(j, p[:, c], len(keep)) for c in range(3)], 1) / np.maximum(n, 1)[:, None]
+        d = p - mean[j]
+        cov = np.zeros((len(keep), 3, 3))
+        for a in range(3):
+            for b in range(a, 3):
+                cov[:, a, b] = cov[:, b, a] = np.bincount(j, d[:, a] * d[:, b], len(keep))
+        fit = n > 3
+        if fit.any():
+            _, vec = np.linalg.eigh(cov[fit])
+            nrm, major = vec[:, :, 0], vec[:, :, 2]
+            flip = np.sum(nrm * toward[fit], axis=1) < 0
+            nrm[flip] *= -1
+            normal[fit], up[fit] = nrm, major
+    # up normal to the normal
+    up -= np.sum(up * normal, axis=1, keepdims=True) * normal
+    bad = np.linalg.norm(up, axis=1) < 1e-6
+    up[bad] = np.cross(normal[bad], R[:, 0])
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    card = np.clip(2.0 * regions.axes[keep, 0] * zs / f, 0.25 * size, 4.0 * size)
+    inside = regions.labels >= 0
+    li = regions.labels[inside]
+    a = np.maximum(np.bincount(li, minlength=len(regions)), 1)
+    rgb = np.stack([np.bincount(li, img[..., c][inside].astype(np.float64), len(regions)) for c in range(3)],
+                   1) / a[:, None] / 255.0
+    return pos, normal, up, card, rgb[keep], regions.area[keep].astype(np.float64)
+
+
+def segmented_leaves(points, skeleton, K, cam_to_world, labels, images, *, size: float, leaves: int, rng,
+                     card_scale: float = 1.0, seed: int = 0, threads: int = 2):
+    """Leaves from every view's leaf regions, de-duplicated, plus the synthesized ones (seed 002 §6.2).
+
+    Parameters
+    ----------
+    points : ndarray, shape (P, 3)
+        The carved leaf points.
+    skeleton : TreeSkeleton
+        The grown tree (the fallback anchors, and the branches for the synthesis).
+    K, cam_to_world : sequences of (3, 3) and (4, 4) arrays
+        The views' intrinsics at the mattes' size and poses (OpenCV axes).
+    labels, images : sequences of arrays
+        The views' mattes (0/1/2) and photos at the mattes' size.
+    size : float
+        A leaf cluster's card edge in metres (the regions' size is this at the tree's depth).
+    leaves : int
+        At most this many leaves (the synthesized ones go first, then the smallest regions').
+    rng : numpy.random.Generator
+    card_scale : float
+        Each card's edge over its region's ellipse (a photo-textured card is cut larger, then
+        carved by the views).
+    seed : int
+        The regions' k-means (view k uses ``seed + k``).
+    threads : int
+        Views segmented at once.
+
+    Returns
+    -------
+    (Foliage, dict)
+        The leaves and counts (``from_regions``, ``duplicates``, ``synthesized``).
+    """
+    from scipy.spatial import cKDTree
+
+    from treeform.structures import Foliage
+
+    pts = np.asarray(points, np.float64)
+    skel = np.asarray(skeleton.positions, np.float64)
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(k):
+        c2w = np.asarray(cam_to_world[k], np.float64)
+        return _view_leaves(k, pts, skel, np.asarray(K[k], np.float64), np.linalg.inv(c2w), c2w, labels[k],
+                            images[k], size, seed + k)
+
+    # the views on threads (OpenCV's mean shift and NumPy release the GIL), gathered in view order
+    with ThreadPoolExecutor(max_workers=max(1, min(threads, len(labels)))) as pool:
+        got = [out for out in pool.map(one, range(len(labels))) if out is not None]
+    stats = {"from_regions": 0, "duplicates": 0, "synthesized": 0}
+    if not got:
+        return Foliage.empty(), stats
+    pos, nrm, up, card, rgb, area = (np.concatenate(x) for x in zip(*got))
+    order = np.argsort(-area, kind="stable")  # larger regions first: they keep their leaf
+    pos, nrm, up, card, rgb = pos[order], nrm[order], up[order], card[order], rgb[order]
+    alive = np.ones(len(pos), bool)
+    for i, j in sorted(cKDTree(pos).query_pairs(0.5 * float(np.median(card)))):
+        if alive[i] and alive[j] and np.linalg.norm(pos[i] - pos[j]) < 0.5 * card[i]:
+            alive[j] = False
+    stats["duplicates"] = int((~alive).sum())
+    pos, nrm, up, card, rgb = pos[alive], nrm[alive], up[alive], card[alive], rgb[alive]
+    stats["from_regions"] = len(pos)
+    node = cKDTree(skel).query(pos)[1]
+    inside = cKDTree(pts).query(skel, distance_upper_bound=size)[0] <= size if len(pts) else None
+    idx, spos, snode = synthesize_sparse(pos, node, skeleton, rng, inside=inside)
+    card = card * float(card_scale)
+    n_real = min(len(pos), leaves)
+    if n_real < len(pos):  # over the budget: the smallest regions' leaves go (they come last)
+        pos, nrm, up, card, rgb, node = pos[:n_real], nrm[:n_real], up[:n_real], card[:n_real], rgb[:n_real], node[:n_real]
+        sel = idx < n_real
+        idx, spos, snode = idx[sel], spos[sel], snode[sel]
+    room = max(0, leaves - len(pos))
+    if len(idx) > room:
+        pick = np.sort(rng.choice(len(idx), room, replace=False))
+        idx, spos, snode = idx[pick], spos[pick], snode[pick]
+    stats["synthesized"] = len(idx)
+    foliage = Foliage(np.concatenate([pos, spos]), np.concatenate([nrm, nrm[idx]]), np.concatenate([up, up[idx]]),
+                      np.concatenate([card, card[idx]]), np.concatenate([rgb, rgb[idx]]).clip(0, 1),
+                      np.concatenate([node, snode]))
+    return foliage, stats
