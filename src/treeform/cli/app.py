@@ -121,6 +121,7 @@ def run_api(func, *args, stages=None, display=None, inputs=(), **kwargs):
 
 LeafTexture = _choices("LeafTexture", "photo", "procedural")
 LeafPlacement = _choices("LeafPlacement", "surface", "segments")
+HiddenGrowth = _choices("HiddenGrowth", "replication", "colonization")
 Profile = _choices("Profile", "rounded", "thin-plate")
 Colonization = _choices("Colonization", "coarse", "paper")
 Method = _choices("Method", "envelope", "learned", "abs")

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from treeform.cli.app import (app, IMPOSTOR_HELP, LeafPlacement, LeafTexture, Lod, run_api, seed_option, write_impostor,
+from treeform.cli.app import (app, HiddenGrowth, IMPOSTOR_HELP, LeafPlacement, LeafTexture, Lod, run_api, seed_option, write_impostor,
                               write_report)
 
 
@@ -22,10 +22,16 @@ def multiview(
                                              "own crown, each card from the photo that sees it best and carved "
                                              "against every view ('photo', default), or drawn clusters tinted with "
                                              "the photos' colours ('procedural': a smaller GLB)."),
+    hidden_growth: HiddenGrowth = typer.Option(HiddenGrowth.replication, "--hidden-growth", help="The branches "
+                                               "the photos do not see: the seen branches' own subtrees replicated "
+                                               "into the crown, then grown toward the leaf points ('replication', "
+                                               "default, as Tan et al. 2007 do), or space colonization alone "
+                                               "('colonization')."),
     leaf_placement: LeafPlacement = typer.Option(LeafPlacement.surface, "--leaf-placement", help="Where the leaves "
                                                  "go: on the crown surface the photos carve ('surface', default), "
-                                                 "or from each photo's leaf regions as seed 002 §6 does (mean "
-                                                 "shift, ellipses, placed on the hull, de-duplicated; 'segments')."),
+                                                 "or from each photo's leaf regions as Tan et al. 2007 place them "
+                                                 "(mean shift, ellipses, placed on the hull, de-duplicated; "
+                                                 "'segments')."),
     height: Optional[float] = typer.Option(None, "--height", help="Tree height in metres (default: metric scale "
                                            "from the cameras held at eye height, 1.6 m)."),
     segmenter: str = typer.Option("learned", "--segmenter", help="Tree matting per view: learned or classical."),
@@ -48,6 +54,7 @@ def multiview(
 
     res = run_api(reconstruct_multiview, photos, stages=STAGES, out=out, seed=seed, leaves=leaves, lod=lod.value,
                   leaf_texture=leaf_texture.value, leaf_placement=leaf_placement.value,
+                  hidden_growth=hidden_growth.value,
                   height=height, segmenter=segmenter, masks=masks, refine_poses=refine_poses,
                   mask_size=mask_size,
                   inputs=(("PHOTO_DIR", photos), ("--masks", masks)))

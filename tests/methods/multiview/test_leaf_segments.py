@@ -1,13 +1,14 @@
-"""Seed 002 §6.2 pieces: branch chains and the synthesis of the sparse branches' leaves."""
+"""Seed 002 §6.2: the synthesis of the sparse branches' leaves."""
 
 import numpy as np
 
-from treeform.methods.multiview.leaf_segments import branch_chains, synthesize_sparse
+from treeform.methods.multiview.leaf_segments import synthesize_sparse
 from treeform.structures import TreeSkeleton
 
 
 def _y_tree():
-    """A trunk (0-2) forking at node 2 into three straight limbs of 4 nodes (3-6, 7-10, 11-14)."""
+    """A trunk (0-2) forking at node 2 into three straight limbs of 4 nodes (3-6, 7-10, 11-14) and a
+    thicker leader going on up (15-17): the trunk's chain is the leader's, each limb its own branch."""
     pos = [[0, 0, 0], [0, 1, 0], [0, 2, 0]]
     par = [-1, 0, 1]
     for d in ([1, 1, 0], [-1, 1, 0], [0, 1, 1]):
@@ -15,14 +16,12 @@ def _y_tree():
         for s in range(1, 5):
             pos.append(list(np.array([0, 2, 0]) + 0.5 * s * d))
             par.append(2 if s == 1 else len(pos) - 2)
-    return TreeSkeleton(np.array(pos, float), np.array(par), np.full(len(pos), 0.05), np.zeros(len(pos), int))
-
-
-def test_branch_chains_split_at_forks():
-    sk = _y_tree()
-    c = branch_chains(sk.parent)
-    assert len(set(c[:3])) == 1 and len(set(c[3:7])) == 1 and len(set(c[7:11])) == 1 and len(set(c[11:])) == 1
-    assert len({c[0], c[3], c[7], c[11]}) == 4
+    for s in range(1, 4):
+        pos.append([0, 2 + 0.5 * s, 0])
+        par.append(2 if s == 1 else len(pos) - 2)
+    radius = np.full(len(pos), 0.05)
+    radius[[0, 1, 2, 15, 16, 17]] = 0.1
+    return TreeSkeleton(np.array(pos, float), np.array(par), radius, np.zeros(len(pos), int))
 
 
 def test_the_sparsest_branch_gets_the_densest_branchs_leaves():
@@ -46,5 +45,5 @@ def test_the_sparsest_branch_gets_the_densest_branchs_leaves():
     # a limb outside the crown's leaf volume stays bare
     inside = np.ones(sk.n_nodes, bool)
     inside[7:11] = False
-    idx2, _, _ = synthesize_sparse(pos, node, sk, np.random.default_rng(0), inside=inside)
-    assert len(idx2) == 0
+    idx2, _, node2 = synthesize_sparse(pos, node, sk, np.random.default_rng(0), inside=inside)
+    assert len(idx2) and not set(node2) & set(range(7, 11))  # the next sparsest (the bare leader) gets them

@@ -20,9 +20,10 @@ Stages, each one call into a domain folder or a sibling module:
    not to every cell the ray crosses in the crown; thin or wood-voted points are branch, the
    rest leaf.
 5. **visible branch graph** (§4.3): :func:`branch_graph.branch_skeleton`.
-6. **hidden branches** (§5): constrained growth — the project's space colonization from
-   the visible skeleton toward the leaf points (seed 002 grows its replication blocks
-   "constrained by the leaf points"); radii by the pipe model, the trunk at the width the photos
+6. **hidden branches** (§5.2): the visible skeleton's own subtrees as replication blocks,
+   each turned and scaled onto an end branch it replaces, cut at the hull
+   (:mod:`replication`), then constrained growth — the project's space colonization toward
+   the leaf points with the paper's 90-degree influence cones; radii by the pipe model, the trunk at the width the photos
    show at their own resolution (:func:`trunk.trunk_diameter`; the mattes' width where they do not).
 7. **leaves** (§6): most leaf clusters on the crown's surface as the views' silhouettes carve
    it, the rest on the grown twigs; each card wears the photo that sees it best, carved texel
@@ -55,6 +56,12 @@ votes explained along the views' rays, :func:`~treeform.methods.multiview.carve.
 PIECE_GAP = 0.03
 """Pieces of the fine hull this share of the tree's height from the pieces in the trunk's column join
 the tree (:func:`~treeform.methods.multiview.carve.tree_pieces`; the gap the branch graph bridges too)."""
+
+REPLICATION_CONE = 45.0
+"""Half-angle (degrees) of the influence cones of the constrained growth after the replication blocks
+(seed 002 §5.2: "an angular extent of 90 degrees side to side")."""
+REPLICATION_NODES = 4000
+"""The replication blocks' growth stops at this many nodes."""
 
 COVER = 0.65
 """Share of a leaf-cluster card its texture covers."""
@@ -325,6 +332,29 @@ def _ring(sfm) -> tuple[np.ndarray, float]:
     return center, float(np.median(np.hypot(c[:, 0] - xz[0], c[:, 1] - xz[1])))
 
 
+def _replicate(visible, carved, rng):
+    """The visible skeleton grown by its own subtrees inside the carved hull (seed 002 §5.2's
+    unconstrained growth, :mod:`~treeform.methods.multiview.replication`): as many end branches
+    replaced as the visible skeleton has tips, up to ``REPLICATION_NODES`` nodes."""
+    from scipy.spatial import cKDTree
+
+    from treeform.methods.multiview.replication import grow_by_replication, replication_blocks
+
+    blocks = replication_blocks(visible.positions, visible.parent)
+    hull = cKDTree(carved.points)
+
+    def inside(p):
+        d, i = hull.query(p)
+        return d <= carved.size[i]
+
+    par = np.asarray(visible.parent)
+    tips = int(np.count_nonzero(np.bincount(par[par >= 0], minlength=len(par)) == 0))
+    pos, parent, stats = grow_by_replication(visible.positions, par, blocks, inside, rng, rounds=tips,
+                                             max_nodes=REPLICATION_NODES)
+    stats["blocks"] = len(blocks)
+    return pos, parent, stats
+
+
 def _crown_attractors(carved, branch: np.ndarray, n: int, rng) -> np.ndarray:
     """``n`` points spread over the leaf cells in proportion to their volume."""
     leaf = ~branch
@@ -528,10 +558,15 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
     with timer.stage("growth"):
         att = _crown_attractors(carved, branch, 4000, rng)
         start_pos, start_par = visible.positions, visible.parent
+        growth_stats = None
+        if cfg.hidden_growth == "replication":
+            start_pos, start_par, growth_stats = _replicate(visible, carved, rng)
         if len(att):
             res = space_colonization(att, start_pos, start_par, influence_radius=0.2 * height,
                                      kill_distance=0.035 * height, segment_length=0.015 * height,
-                                     max_iterations=400, direction_weight=cfg.direction_weight)
+                                     max_iterations=400, direction_weight=cfg.direction_weight,
+                                     perception_angle=REPLICATION_CONE if cfg.hidden_growth == "replication"
+                                     else None)
             pos, par = res.positions, res.parent
         else:
             pos, par = start_pos, start_par
@@ -598,6 +633,7 @@ def reconstruct_multiview(photos, *, out=None, masks=None, config: MultiviewConf
         "sfm_points": len(sfm.points), "carved_cells": len(carved),
         "branch_cells": int(branch.sum()), "visible_nodes": int(visible.n_nodes), "nodes": skeleton.n_nodes,
         "leaves": len(foliage), "triangles": mesh.n_triangles, "leaf_regions": leaf_stats,
+        "replication": growth_stats,
         # the model's own top above the ground (y = 0): the carved hull's (hull_height_m) stands higher,
         # a tent over the crown that eye-level views cannot carve away
         "tree_height_m": round(float(mesh.bounds()[1][1]), 4), "hull_height_m": round(float(height), 4),
