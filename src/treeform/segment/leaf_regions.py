@@ -61,6 +61,15 @@ class LeafRegions:
         return len(self.area)
 
 
+def _neighbours(shape):
+    """The four (a, b) slice pairs of an (H, W) grid whose pixels a[i] and b[i] are 8-neighbours
+    (right, down, down-right, down-left): each neighbouring pair once."""
+    h, w = shape
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        yield ((slice(0, h - dy), slice(max(0, -dx), w - max(0, dx))),
+               (slice(dy, h), slice(max(0, dx), w - max(0, -dx))))
+
+
 def _components(key: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Labels (-1 outside ``mask``) of the 8-connected pieces of ``mask`` with equal ``key``."""
     from scipy.sparse import coo_matrix
@@ -71,9 +80,7 @@ def _components(key: np.ndarray, mask: np.ndarray) -> np.ndarray:
     n = int(mask.sum())
     idx[mask] = np.arange(n)
     rows, cols = [], []
-    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        a = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))
-        b = (slice(dy, h), slice(max(0, dx), w - max(0, -dx) if dx < 0 else w))
+    for a, b in _neighbours((h, w)):
         same = mask[a] & mask[b] & (key[a] == key[b])
         rows.append(idx[a][same])
         cols.append(idx[b][same])
@@ -105,9 +112,8 @@ def _merge_small(labels: np.ndarray, color: np.ndarray, min_area: int, rounds: i
         if not small.any():
             break
         pairs = []
-        for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
-            a = labels[0:h - dy, max(0, -dx):w - max(0, dx)]
-            b = labels[dy:h, max(0, dx):w - max(0, -dx) if dx < 0 else w]
+        for sa, sb in _neighbours((h, w)):
+            a, b = labels[sa], labels[sb]
             d = (a >= 0) & (b >= 0) & (a != b)
             pairs.append(np.stack([a[d], b[d]], 1))
         p = np.concatenate(pairs)

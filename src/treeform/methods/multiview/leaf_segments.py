@@ -58,6 +58,8 @@ def synthesize_sparse(positions: np.ndarray, node: np.ndarray, skeleton, rng, *,
     leaf copies leaf ``idx`` (its orientation, size and colour) at ``new_positions`` on twig
     ``new_node``.
     """
+    from treeform.methods.multiview.replication import rotation_onto
+
     pos = np.asarray(skeleton.positions, np.float64)
     par = np.asarray(skeleton.parent)
     chain = fork_chains(par)
@@ -98,7 +100,7 @@ def synthesize_sparse(positions: np.ndarray, node: np.ndarray, skeleton, rng, *,
         la, lb = np.linalg.norm(va), np.linalg.norm(vb)
         if la < 1e-9 or lb < 1e-9:
             continue
-        R = _rotation(va / la, vb / lb)
+        R = rotation_onto(va / la, vb / lb)
         mine = np.flatnonzero(leaf_chain == e)
         p = (positions[mine] - a0) @ R.T * (lb / la) + b0
         nodes_c = np.flatnonzero(chain == c)
@@ -111,18 +113,7 @@ def synthesize_sparse(positions: np.ndarray, node: np.ndarray, skeleton, rng, *,
     return np.concatenate(idx), np.concatenate(new_pos), np.concatenate(new_node)
 
 
-def _rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The rotation taking unit vector ``a`` onto unit vector ``b`` (about their common normal)."""
-    v, c = np.cross(a, b), float(np.dot(a, b))
-    if c < -1 + 1e-9:  # opposite: a half turn about any axis normal to a
-        n = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        n /= np.linalg.norm(n)
-        return 2.0 * np.outer(n, n) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
-
-
-def _view_leaves(k, pts, skel_pts, K, w2c, c2w, lab, img, size, seed):
+def _view_leaves(pts, skel_pts, K, w2c, c2w, lab, img, size, seed):
     """The leaves one view's regions give: (positions, normals, up, size, colour, area)."""
     from scipy.spatial import cKDTree
 
@@ -271,7 +262,7 @@ def segmented_leaves(points, skeleton, K, cam_to_world, labels, images, *, size:
 
     def one(k):
         c2w = np.asarray(cam_to_world[k], np.float64)
-        return _view_leaves(k, pts, skel, np.asarray(K[k], np.float64), np.linalg.inv(c2w), c2w, labels[k],
+        return _view_leaves(pts, skel, np.asarray(K[k], np.float64), np.linalg.inv(c2w), c2w, labels[k],
                             images[k], size, seed + k)
 
     # the views on threads (OpenCV's mean shift and NumPy release the GIL), gathered in view order

@@ -15,9 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from treeform.methods.multiview.leaf_segments import _rotation
-
-__all__ = ["Block", "replication_blocks", "grow_by_replication"]
+__all__ = ["Block", "replication_blocks", "grow_by_replication", "rotation_onto"]
 
 
 @dataclass
@@ -95,6 +93,21 @@ def replication_blocks(positions, parent, *, min_nodes: int = 6, max_share: floa
     return blocks
 
 
+def rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation taking unit vector ``a`` onto unit vector ``b`` (about their common normal).
+
+    >>> bool(np.allclose(rotation_onto(np.array([1.0, 0, 0]), np.array([0, 1.0, 0])) @ [1, 0, 0], [0, 1, 0]))
+    True
+    """
+    v, c = np.cross(a, b), float(np.dot(a, b))
+    if c < -1 + 1e-9:  # opposite: a half turn about any axis normal to a
+        n = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        n /= np.linalg.norm(n)
+        return 2.0 * np.outer(n, n) - np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     x, y, z = axis
     c, s = np.cos(angle), np.sin(angle)
@@ -168,7 +181,7 @@ def grow_by_replication(positions, parent, blocks: list[Block], inside, rng, *, 
         if length < 1e-9 or blen < 1e-9:
             continue
         d = vec / length
-        R = _axis_angle(d, rng.uniform(0, 2 * np.pi)) @ _rotation(b.primary / blen, d)  # onto d, then about it
+        R = _axis_angle(d, rng.uniform(0, 2 * np.pi)) @ rotation_onto(b.primary / blen, d)  # onto d, then about it
         new = pos[fork] + (length / blen) * b.positions @ R.T
         ok = np.asarray(inside(new[1:]), bool)
         keep = np.zeros(len(new), bool)
