@@ -95,7 +95,10 @@ def _components(key: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def _relabel(labels: np.ndarray) -> np.ndarray:
     out = np.full(labels.shape, -1, np.int32)
     inside = labels >= 0
-    out[inside] = np.unique(labels[inside], return_inverse=True)[1]
+    li = labels[inside]
+    if len(li):  # the labels in use, in order, numbered 0.. (np.unique's inverse, without its sort)
+        used = np.bincount(li) > 0
+        out[inside] = (np.cumsum(used) - 1)[li]
     return out
 
 
@@ -115,24 +118,25 @@ def _merge_small(labels: np.ndarray, color: np.ndarray, min_area: int, rounds: i
         for sa, sb in _neighbours((h, w)):
             a, b = labels[sa], labels[sb]
             d = (a >= 0) & (b >= 0) & (a != b)
+            d[d] = small[a[d]] | small[b[d]]  # only the pairs with a small region matter
             pairs.append(np.stack([a[d], b[d]], 1))
         p = np.concatenate(pairs)
         if not len(p):
             break
         p = np.concatenate([p, p[:, ::-1]]).astype(np.int64)
-        key = np.unique(p[:, 0] * n + p[:, 1])  # the distinct pairs (a 1-D unique: far faster than rows)
-        p = np.stack([key // n, key % n], 1)
-        p = p[small[p[:, 0]]]  # a small region and each of its neighbours
+        p = p[small[p[:, 0]]]  # a small region and each of its neighbours (a pair may repeat)
         if not len(p):
             break
         mean = np.stack([np.bincount(labels[labels >= 0], weights=color[..., c][labels >= 0], minlength=n)
                          for c in range(3)], 1) / np.maximum(area, 1)[:, None]
         cost = np.linalg.norm(mean[p[:, 0]] - mean[p[:, 1]], axis=1)
-        order = np.lexsort((cost, p[:, 0]))
-        p = p[order]
-        first = np.r_[True, p[1:, 0] != p[:-1, 0]]
-        target = np.arange(n)
-        target[p[first, 0]] = p[first, 1]
+        # each small region's closest-coloured neighbour, the lowest label among equals (no sort)
+        best = np.full(n, np.inf)
+        np.minimum.at(best, p[:, 0], cost)
+        tie = cost == best[p[:, 0]]
+        pick = np.full(n, n)
+        np.minimum.at(pick, p[tie, 0], p[tie, 1])
+        target = np.where(pick < n, pick, np.arange(n))
         # resolve chains (a -> b -> c) and mutual pairs (a <-> b: both go to the smaller index)
         for _ in range(32):
             nxt = target[target]

@@ -47,3 +47,35 @@ def test_the_sparsest_branch_gets_the_densest_branchs_leaves():
     inside[7:11] = False
     idx2, _, node2 = synthesize_sparse(pos, node, sk, np.random.default_rng(0), inside=inside)
     assert len(idx2) and not set(node2) & set(range(7, 11))  # the next sparsest (the bare leader) gets them
+
+
+def test_rounds_of_synthesis_fill_the_bare_branches_within_the_budget():
+    from scipy.spatial import cKDTree
+
+    from treeform.methods.multiview.leaf_segments import fill_sparse
+
+    sk = _y_tree()
+    t = np.linspace(0.1, 1.9, 20)[:, None]
+    pos = np.array([0, 2, 0]) + t * np.array([1, 1, 0]) / np.sqrt(2)
+    node = np.full(20, 5)
+    chains = {"limb2": set(range(7, 11)), "limb3": set(range(11, 15)), "leader": set(range(15, 18))}
+
+    def bare(twig):
+        return sorted(k for k, v in chains.items() if not v & set(twig.tolist()))
+
+    one = fill_sparse(pos, node, sk, np.random.default_rng(0), budget=1000, rounds=1)
+    three = fill_sparse(pos, node, sk, np.random.default_rng(0), budget=1000, rounds=3)
+    assert len(bare(one[2])) == 2 and bare(three[2]) == []  # one round fills one of the three bare branches
+    assert len(three[0]) > len(one[0]) and three[0].max() < 20  # copies of copies name the original leaves
+    # the budget caps the copies; the same seed gives the same leaves
+    capped = fill_sparse(pos, node, sk, np.random.default_rng(1), budget=25, rounds=3)
+    again = fill_sparse(pos, node, sk, np.random.default_rng(1), budget=25, rounds=3)
+    assert len(capped[0]) == 25 and all(np.array_equal(a, b) for a, b in zip(capped, again))
+    # copies beyond the leaf volume go: a volume around limb 1 and the leader keeps those on limbs 2
+    # and 3 only by the fork
+    vol = cKDTree(np.concatenate([pos, [[0, 2 + s, 0] for s in np.linspace(0, 1.5, 16)]]))
+    kept = fill_sparse(pos, node, sk, np.random.default_rng(0), budget=1000, rounds=3, volume=vol, reach=0.2)
+    on_limbs = np.isin(kept[2], sorted(chains["limb2"] | chains["limb3"]))
+    assert len(kept[0]) > 4 * on_limbs.sum() and (kept[1][on_limbs, 1] < 2.3).all()
+    assert cKDTree(vol.data).query(kept[1])[0].max() <= 0.2
+    assert len(fill_sparse(pos, node, sk, np.random.default_rng(0), budget=0)[0]) == 0

@@ -95,7 +95,8 @@ class MultiviewConfig:
     cut into leaf regions (mean shift in LUV, split or merge, the brightest colour clusters, ellipses),
     each placed on the leaf point along its centroid's line of sight and turned to the SVD plane of the
     points seen in it, de-duplicated across views, and the sparsest third of the branches given the
-    leaves of the densest (:mod:`treeform.methods.multiview.leaf_segments`)."""
+    leaves of the densest, round after round until ``leaves`` are placed
+    (:mod:`treeform.methods.multiview.leaf_segments`)."""
     lod: str = "medium"
     """Triangle budget (see treeform.geometry.LOD_PRESETS)."""
 
