@@ -254,3 +254,31 @@ def test_mapper_runs_at_once_give_the_models_of_runs_one_after_another(tmp_path,
         for k in ma:
             assert ma[k][0] == mb[k][0]
             np.testing.assert_array_equal(ma[k][1], mb[k][1])
+
+
+def test_large_photos_are_registered_at_their_own_scale_first(capture, colmap, monkeypatch):
+    # first_octave=None: photos at least OCTAVE_ZERO_FROM long go to SIFT at their own scale (a
+    # quarter of the time on 1024-px photos); where that leaves a photo out, again with the images
+    # doubled, and the better model is kept
+    import treeform.sfm.colmap as sfm_colmap
+
+    views = load_photos(capture[0])
+    monkeypatch.setattr(sfm_colmap, "OCTAVE_ZERO_FROM", 300)  # the capture's 400-px photos count as large
+    r = run_sfm(views, seed=0)
+    assert r.meta["first_octave"] == 0 and r.meta["octave_tries"] == [[0, N_VIEWS]]
+    assert pose_errors(r, truth_cameras_json(capture[1]))["rotation_median_deg"] < 1.0
+    once = sfm_colmap._run_once
+
+    def own_scale_fails(views, workdir, first_octave, **kw):
+        if first_octave == 0:
+            raise SfmError("could not register the photos")
+        return once(views, workdir, first_octave, **kw)
+
+    monkeypatch.setattr(sfm_colmap, "_run_once", own_scale_fails)
+    r2 = run_sfm(views, seed=0)
+    assert r2.meta["first_octave"] == -1 and r2.meta["octave_tries"] == [[0, 0], [-1, r2.n_cameras]]
+    assert r2.n_cameras == N_VIEWS and len(r2.points) > len(r.points)  # the doubled images: more points
+    monkeypatch.setattr(sfm_colmap, "OCTAVE_ZERO_FROM", 10_000)  # small photos: -1 at once
+    assert run_sfm(views, seed=0).meta["octave_tries"] == [[-1, N_VIEWS]]
+    with pytest.raises(InputError, match="first_octave"):
+        run_sfm(views, first_octave=1)
