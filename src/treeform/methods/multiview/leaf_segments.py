@@ -293,6 +293,9 @@ def segmented_leaves(points, skeleton, K, cam_to_world, labels, images, *, size:
         The regions' k-means (view k uses ``seed + k``).
     threads : int
         Views segmented at once.
+    rounds : int
+        Rounds of the synthesis at most (:func:`fill_sparse`); it stops earlier once the
+        budget ``leaves`` is spent.
 
     Returns
     -------
