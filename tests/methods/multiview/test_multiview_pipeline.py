@@ -287,13 +287,28 @@ def test_mattes_are_seen_closer_and_open_the_sky_gaps(run, monkeypatch):
     assert cut > 0
 
 
-def test_leaves_from_the_photos_leaf_regions(run, tmp_path):
+def test_leaves_from_the_photos_leaf_regions(run, tmp_path, monkeypatch):
     """leaf_placement='segments' (seed 002 §6): leaves from each view's regions, placed on the hull,
-    de-duplicated, the sparse branches synthesized; same seed, same model."""
+    de-duplicated, the sparse branches synthesized; same seed, same model.
+
+    Determinism without a second run of the whole route: everything before the leaves must equal
+    the module's first run (same photos and seed, other leaves), and the leaf stage, called again
+    on the inputs and generator state this run gave it, must give the same leaves."""
+    import copy
+
     from scipy.spatial import cKDTree
 
+    import treeform.methods.multiview.leaf_segments as leaf_segments
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
+    calls = []
+    stage = leaf_segments.segmented_leaves
+
+    def spy(*args, **kw):
+        calls.append((args, {k: copy.deepcopy(v) if k == "rng" else v for k, v in kw.items()}))
+        return stage(*args, **kw)
+
+    monkeypatch.setattr(leaf_segments, "segmented_leaves", spy)
     cap, base, _ = run
     kw = dict(mask_size=320, leaves=1500, lod="low", segmenter="learned", seed=0, cells=200, surface_cells=100,
               leaf_texture="procedural", leaf_placement="segments")
@@ -310,6 +325,10 @@ def test_leaves_from_the_photos_leaf_regions(run, tmp_path):
                    cKDTree(res.skeleton.positions).query(f.positions[:st["from_regions"]])[0])
     assert np.percentile(d, 99) < 1e-6 + 0.02 * res.metrics["hull_height_m"]
     assert (tmp_path / "a" / "tree.glb").is_file()
-    again = reconstruct_multiview(cap.out / "images", out=tmp_path / "b", **kw)
-    assert np.array_equal(again.foliage.positions, f.positions)
+    # same seed, same model: the stages before the leaves as in the first run, the leaves as again
+    assert np.array_equal(res.carved.points, base.carved.points) and np.array_equal(res.branch, base.branch)
+    assert np.array_equal(res.skeleton.positions, base.skeleton.positions)
+    (args, kwargs), = calls
+    again, _ = stage(*args, **kwargs)
+    assert np.array_equal(again.positions, f.positions) and np.array_equal(again.normals, f.normals)
     assert res.metrics["leaf_regions"] is not None and base.metrics["leaf_regions"] is None
