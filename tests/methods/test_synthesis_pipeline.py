@@ -201,13 +201,13 @@ def test_photo_textured_leaves_look_like_the_photo(run, gl):
     plain = reconstruct(SAMPLE, seed=0, leaf_texture="procedural", **FAST)
     assert plain.foliage.uv is None
     # the front view shows the photo's crown: structurally closer to the photo than one colour a card, on the
-    # same chosen model (the search never sees the leaf texture). The median of three seeds: at these small
-    # search settings a sub-pixel change of the trunk's foot can swap the chosen model (seed 0: 0.09 against
-    # 0.10 on one, 0.18 against 0.12 on another; medians 0.18 against 0.12 with the network's mask)
-    photo = [res.metrics["front_ssim"]] + [reconstruct(SAMPLE, seed=s, **FAST).metrics["front_ssim"] for s in (1, 2)]
-    one = [plain.metrics["front_ssim"]] + [reconstruct(SAMPLE, seed=s, leaf_texture="procedural", **FAST)
-                                          .metrics["front_ssim"] for s in (1, 2)]
-    assert np.median(photo) > 1.3 * np.median(one) + 0.01
+    # same chosen model (the search never sees the leaf texture). Measured at the route's default search: at
+    # the small settings above a sub-pixel change of the trunk's foot or the mask swaps the chosen model, and
+    # front SSIM there swings either way (0.06-0.21 for both textures over seeds and photo sizes); at the
+    # defaults 0.55 against 0.11 when written (0.53 against 0.09 before the mask opened the crown's gaps)
+    photo = reconstruct(SAMPLE, seed=0, species="oak").metrics["front_ssim"]
+    one = reconstruct(SAMPLE, seed=0, species="oak", leaf_texture="procedural").metrics["front_ssim"]
+    assert photo > 2 * one + 0.05, (photo, one)
     with pytest.raises(InputError, match="leaf_texture"):
         reconstruct(SAMPLE, leaf_texture="bark")
 

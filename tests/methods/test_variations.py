@@ -288,9 +288,13 @@ def test_season_transfer_in_lab_keeps_hues_that_rgb_turns_pink(library, referenc
         in_rgb = off_hue(season_transfer(ex.rgba, ex.labels, ref, space="rgb"))
         assert in_lab < 0.06 and in_rgb > 2.5 * in_lab, (photo, in_lab, in_rgb)
     ref = references["Acer_rubrum_2.jpg"]  # a visible trunk: its bark goes onto the trunk
-    lo, hi = np.percentile(_pixel_hues(ref.trunk), [10, 90])
-    trunk_hue = _hue(season_transfer(ex.rgba, ex.labels, ref), lab == 2)
-    assert abs(trunk_hue - mean_hue(ref.trunk)[0]) < 5 and lo <= trunk_hue <= hi
+    # compared by the mean a*b* (chromatic distance), not the hue angle: grey bark has a chroma of about
+    # 1, where a hue angle swings by degrees for a tenth of a unit (0.3 apart when written; the crown's
+    # colours stand 14 apart from the bark's)
+    out = season_transfer(ex.rgba, ex.labels, ref)
+    got = _to_space(out[(lab == 2) & (out[..., 3] > 0)][:, :3], "lab").mean(0)
+    want = _to_space(ref.trunk, "lab").mean(0)
+    assert np.hypot(*(got[1:] - want[1:])) < 2.0
 
 
 def test_low_leaves_below_the_crown_baseline_take_crown_colours(library):

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from treeform._shared.errors import InputError
-from treeform.segment.matting import alpha_matting, estimate_foreground, make_trimap, matte_tree, sky_gaps
+from treeform.segment.matting import (alpha_matting, background_gaps, estimate_foreground, make_trimap, matte_tree,
+                                      sky_gaps)
 from treeform.structures import Segmentation
 
 pytest.importorskip("pymatting")
@@ -120,3 +121,57 @@ def test_mattes_on_threads_side_by_side_leave_standard_output_as_it_was(capsys):
     out = capsys.readouterr().out
     assert "still here" in out and "swallowed" not in out
     assert len(results) == 3 and all(np.array_equal(r, results[0]) for r in results)  # the same matte each time
+
+
+def _walled_crown(n=120, seed=1):
+    """An overcast sky over a brick wall and a lawn; a textured green crown with two gaps (one on the
+    sky, one on the wall), a lawn-green patch in it, and a pale grey trunk under it (the tree's lowest fifth)."""
+    rng = np.random.default_rng(seed)
+    img = np.empty((n, n, 3), np.uint8)
+    img[:] = (205, 205, 210)  # overcast sky
+    img[45:95] = (150, 70, 55)  # brick wall
+    img[95:] = (90, 160, 60)  # lawn
+    yy, xx = np.mgrid[:n, :n]
+    crown = (np.abs(xx - 60) < 32) & (yy >= 15) & (yy < 84)
+    leaves = np.stack([30 + 40 * rng.random((n, n)), 80 + 50 * rng.random((n, n)), 20 + 30 * rng.random((n, n))], -1)
+    img[crown] = leaves[crown].astype(np.uint8)
+    img[25:45, 40:52] = (90, 160, 60)  # sunlit leaves the colour of the lawn
+    trunk = (np.abs(xx - 60) < 4) & (yy >= 84) & (yy < 100)
+    img[trunk] = (200, 200, 205)  # a pale trunk, the sky's colour
+    sky_gap, wall_gap = (slice(20, 26), slice(68, 76)), (slice(58, 66), slice(40, 48))
+    img[sky_gap] = (205, 205, 210)
+    img[wall_gap] = (150, 70, 55)
+    tree = crown | trunk  # what a coarse segmenter returns: the gaps filled in
+    return img, tree, trunk, sky_gap, wall_gap
+
+
+def test_background_gaps_are_whatever_surrounds_the_tree_not_a_hue():
+    from treeform.segment.classical import ground_line
+
+    img, tree, trunk, sky_gap, wall_gap = _walled_crown()
+    ground = np.full(img.shape[1], 95)
+    gaps = background_gaps(img, tree, ground=ground)
+    # the overcast sky and the brick wall seen through the crown: neither blue nor bright
+    assert gaps[sky_gap].all() and gaps[wall_gap].all()
+    assert not sky_gaps(img, Segmentation(tree.astype(np.uint8)))[wall_gap].any()  # the bright-sky rule misses the wall
+    # not the leaves, not the lawn-coloured leaves (the lawn is under the ground line), and not the pale trunk
+    # under the crown (the tree's lowest rows are left alone)
+    assert gaps.sum() == 6 * 8 + 8 * 8
+    assert not gaps[trunk].any() and not gaps[25:45, 40:52].any()
+    # wood is never a gap
+    wood = np.zeros_like(tree)
+    wood[wall_gap] = True
+    assert not background_gaps(img, tree, wood=wood, ground=ground)[wall_gap].any()
+    assert ground_line(img).shape == (img.shape[1],)
+
+
+def test_background_gaps_checks_and_edge_cases():
+    img, tree, *_ = _walled_crown()
+    assert not background_gaps(img, np.zeros_like(tree)).any()
+    assert not background_gaps(img, np.ones_like(tree)).any()  # nothing around the tree to compare with
+    with pytest.raises(InputError, match="tree"):
+        background_gaps(img, tree[:-1])
+    with pytest.raises(InputError, match="ratio"):
+        background_gaps(img, tree, ratio=0)
+    with pytest.raises(InputError, match="ground"):
+        background_gaps(img, tree, ground=np.zeros(3))

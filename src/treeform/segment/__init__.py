@@ -15,7 +15,7 @@ __all__ = ["segment", "SEGMENTERS", "DEFAULT_SEGMENTER", "segment_tree", "segmen
 
 
 def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tree: bool = False,
-            side: int | None = None):
+            side: int | None = None, gaps: bool = True):
     """Segment the main tree of an (H, W, 3) uint8 photo with ``method`` ('learned' or 'classical').
 
     The classical graph cut uses ``seed``; the network is deterministic and sees the photo with
@@ -25,7 +25,8 @@ def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tr
     holds a tree at all (its mask and the main part only: no edge refinement, trunk or holes;
     ~0.06 s, run beside the colour rules on a second core), and
     :class:`~treeform._shared.errors.NoTreeFoundError` is raised when it does not (without
-    usable weights the rules go on alone).
+    usable weights the rules go on alone). ``gaps`` is the network's: whether the gaps of the
+    crown it filled are opened (:func:`segment_tree_learned`).
     """
     from treeform._shared.checks import check_choice
     from treeform._shared.rng import as_rng
@@ -33,7 +34,7 @@ def segment(image, *, method: str = DEFAULT_SEGMENTER, seed: int = 0, require_tr
     check_choice(method, "segmenter", SEGMENTERS)
     as_rng(seed)  # a negative or non-integer seed is one clear error, whichever segmenter runs
     if method == "learned":
-        return segment_tree_learned(image, side=side)
+        return segment_tree_learned(image, side=side, gaps=gaps)
     if not require_tree:
         return segment_tree(image, seed=seed)
     from concurrent.futures import ThreadPoolExecutor

@@ -251,7 +251,7 @@ def snap_to_edges(img: np.ndarray, p_tree: np.ndarray, side: int) -> np.ndarray:
 
 def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matting",
                          fill_holes: float = HOLE_FRACTION, ground: bool = True, trunk: bool = True,
-                         side: int | None = None) -> Segmentation:
+                         side: int | None = None, gaps: bool = True) -> Segmentation:
     """Segment the main tree of a photo with the learned network.
 
     Parameters
@@ -281,6 +281,13 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     side : int, optional
         Long side, in pixels, at which the network sees the photo (default: the weights'
         own, 320); the sharpness map and the edge snapping work at it too.
+    gaps : bool
+        With ``refine='matting'``, also open the gaps of the crown the network filled in:
+        pixels coloured like what surrounds the tree and rare in it
+        (:func:`~treeform.segment.matting.background_gaps`: overcast sky, a wall, a blurred
+        hedge seen through the crown) become background in the matting's trimap, as blue sky
+        always does. False leaves them to the caller (the multi-view route has its own gap
+        rule, tuned with its carving).
 
     Returns
     -------
@@ -322,9 +329,11 @@ def segment_tree_learned(image: np.ndarray, *, weights=None, refine: str = "matt
     if tree.mean() < MIN_TREE_FRACTION:
         raise NoTreeFoundError("no tree found in the photo")
     if refine == "matting":
-        from treeform.segment.matting import blue_sky
+        from treeform.segment.matting import background_gaps, blue_sky
 
         sky = blue_sky(img)
+        if gaps:  # the gaps the network filled: whatever colours surround the tree but are rare in it
+            sky |= background_gaps(img, tree, wood=p[..., 2] > p[..., 1], ground=g if ground else None)
         matte, a = _matte_refine(img, tree, p_tree, sky)
         if ground:
             matte = stand_on_ground(matte, g)

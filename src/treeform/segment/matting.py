@@ -33,7 +33,7 @@ from treeform._shared.jit import cold_kernels
 from treeform._shared.rng import as_rng
 from treeform.structures.segmentation import Segmentation
 
-__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps", "blue_sky",
+__all__ = ["make_trimap", "alpha_matting", "estimate_foreground", "matte_tree", "sky_gaps", "background_gaps", "blue_sky",
            "kernels_to_compile"]
 
 UNKNOWN = 0.5
@@ -175,6 +175,90 @@ def blue_sky(image: np.ndarray, *, min_share: float = 0.1) -> np.ndarray:
     return blue if top.mean() >= min_share else np.zeros_like(blue)
 
 
+def _colour_ratio(lab: np.ndarray, background: np.ndarray, tree: np.ndarray) -> np.ndarray:
+    """(H, W) how much more often each pixel's colour occurs in ``background`` than in ``tree``.
+
+    Colours are Lab bins (8 x 16 x 16 of OpenCV's 8-bit Lab), each histogram normalised with
+    half a count added to every bin, so a colour neither region holds has ratio 1.
+    """
+    q = ((lab[..., 0].astype(np.int32) >> 5) * 16 + (lab[..., 1].astype(np.int32) >> 4)) * 16 \
+        + (lab[..., 2].astype(np.int32) >> 4)
+    nb = 8 * 16 * 16
+    hb = (np.bincount(q[background], minlength=nb) + 0.5) / (background.sum() + 0.5 * nb)
+    hf = (np.bincount(q[tree], minlength=nb) + 0.5) / (tree.sum() + 0.5 * nb)
+    return (hb / hf)[q]
+
+
+def background_gaps(image, tree, *, wood=None, ground=None, ratio: float = 6.0, ring: float = 0.08,
+                    crown: float = 0.8) -> np.ndarray:
+    """Pixels of a tree mask coloured like the background around the tree: gaps it filled in.
+
+    A segmenter that sees the photo at a few hundred pixels fills the small gaps of a crown,
+    whatever shows through them: blue or overcast sky, a wall, a blurred hedge. What shows
+    through a gap is what lies around the tree, so the colours that are frequent in a ring
+    round the tree and rare inside it mark the gaps, with no assumption on their hue. A gap
+    pixel lies inside ``tree`` (not on ``wood``), in the upper ``crown`` share of the tree's
+    rows (a pale trunk below the crown can match an overcast sky), and its colour bin (Lab, 8
+    x 16 x 16) is ``ratio`` times more frequent in the ring than in the tree. The ring runs
+    from 1 % to ``ring`` of the photo's long side outside the tree, above the ground line
+    when ``ground`` is given (lawn and road are not seen through a crown); the tree's colours
+    are counted at least 1 % inside its edge.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), uint8
+    tree : ndarray, shape (H, W), bool
+    wood : ndarray, shape (H, W), bool, optional
+        Pixels never taken as gaps.
+    ground : ndarray, shape (W,), int, optional
+        First ground row of each column (:func:`~treeform.segment.classical.ground_line`).
+    ratio, ring, crown : float
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+
+    Examples
+    --------
+    A green crown over a grey wall; through two holes the network filled, the wall shows:
+
+    >>> img = np.full((100, 100, 3), 128, np.uint8); img[20:80, 20:80] = (40, 120, 40)
+    >>> img[40:46, 40:46] = 128; img[60:64, 30:34] = 128
+    >>> tree = np.zeros((100, 100), bool); tree[20:80, 20:80] = True
+    >>> int(background_gaps(img, tree).sum())
+    52
+    """
+    img = _check_image(image)
+    tree = np.asarray(tree, bool)
+    if tree.shape != img.shape[:2]:
+        raise InputError(f"tree: expected shape {img.shape[:2]}, got {tree.shape}")
+    for name, v in (("ratio", ratio), ("ring", ring), ("crown", crown)):
+        if not np.isfinite(v) or v <= 0:
+            raise InputError(f"{name}: expected a positive number, got {v!r}")
+    h, w = tree.shape
+    if not tree.any():
+        return np.zeros_like(tree)
+    r1 = max(1.0, 0.01 * max(h, w))
+    r2 = max(r1 + 2.0, ring * max(h, w))
+    t8 = tree.astype(np.uint8)
+    outside = cv2.distanceTransform(1 - t8, cv2.DIST_L2, 3)
+    inside = cv2.distanceTransform(t8, cv2.DIST_L2, 3)
+    around = (outside > r1) & (outside <= r2)
+    if ground is not None:
+        g = np.asarray(ground).reshape(-1)
+        if g.shape != (w,):
+            raise InputError(f"ground: expected {w} rows (one per column), got shape {g.shape}")
+        around &= np.arange(h)[:, None] < g[None, :]
+    keep = tree if wood is None else tree & ~np.asarray(wood, bool)
+    inner = (inside > r1) & keep
+    if around.sum() < 50 or inner.sum() < 50:
+        return np.zeros_like(tree)
+    rows = np.flatnonzero(tree.any(1))
+    upper = np.arange(h)[:, None] < rows[0] + crown * (rows[-1] - rows[0] + 1)
+    lab = cv2.cvtColor(img, cv2.COLOR_RGB2Lab)
+    return (_colour_ratio(lab, around, inner) > ratio) & keep & upper
+
+
 def sky_gaps(image, segmentation, *, ratio: float = 10.0) -> np.ndarray:
     """Tree pixels that show the sky through gaps in the foliage.
 
@@ -200,7 +284,6 @@ def sky_gaps(image, segmentation, *, ratio: float = 10.0) -> np.ndarray:
     lab = cv2.cvtColor(img, cv2.COLOR_RGB2Lab)
     L = lab[..., 0].astype(np.int32)
     b = lab[..., 2].astype(np.int32) - 128
-    q = ((L >> 5) * 16 + (lab[..., 1].astype(np.int32) >> 4)) * 16 + (lab[..., 2].astype(np.int32) >> 4)
     r = max(1, int(round(0.01 * max(h, w))))
     inner = cv2.erode(tree.astype(np.uint8), _disc(r)).astype(bool) & ~seg.wood_mask
     bg = cv2.erode((~tree).astype(np.uint8), _disc(r)).astype(bool)
@@ -208,10 +291,7 @@ def sky_gaps(image, segmentation, *, ratio: float = 10.0) -> np.ndarray:
     bg &= np.arange(h)[:, None] < (rows.min() + 0.6 * (rows.max() - rows.min() + 1))  # sky, not ground
     if bg.sum() < 50 or inner.sum() < 50:
         return np.zeros_like(tree)
-    nb = 8 * 16 * 16
-    hb = (np.bincount(q[bg], minlength=nb) + 0.5) / (bg.sum() + 0.5 * nb)
-    hf = (np.bincount(q[inner], minlength=nb) + 0.5) / (inner.sum() + 0.5 * nb)
-    gap = ((hb / hf)[q] > ratio) & (L > 120)
+    gap = (_colour_ratio(lab, bg, inner) > ratio) & (L > 120)
     if np.median(b[bg]) < -4:  # a blue sky: its gaps are blue
         gap |= (b < -6) & (L > 90)
     return gap & tree & ~seg.wood_mask

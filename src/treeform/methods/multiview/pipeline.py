@@ -264,7 +264,8 @@ def _segment_views(views, sfm, cfg, masks=None):
             lab = _user_labels(masks, name, (small.shape[1], small.shape[0]))
         else:
             side = round(MATTE_ZOOM * max(small.shape[:2])) if cfg.matte_side is None else cfg.matte_side
-            seg = segment(small, method=cfg.segmenter, seed=cfg.seed, side=side or None)
+            # (the route's own gap rule follows: the segmenter's would carve the hull twice)
+            seg = segment(small, method=cfg.segmenter, seed=cfg.seed, side=side or None, gaps=False)
             lab = np.array(seg.labels, np.uint8)
             if seg_net is not None and max(img.shape[:2]) >= TILE_WOOD_FROM * seg_net.side:
                 lab[_tile_wood(img, lab.shape, seg_net)] = 2
