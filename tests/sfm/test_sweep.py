@@ -59,6 +59,8 @@ def test_the_sweep_finds_the_ground_under_the_cameras(scale):
     assert g.depth == pytest.approx(1.6 * scale, rel=0.03)  # the cameras stand 1.6 m above the ground
     assert g.contrast > 0.1 and g.pairs == 16  # each camera with its 2 nearest
     assert np.all(np.diff(g.depths) >= 0) and g.scores.max() == pytest.approx(g.scores[np.argmax(g.scores)])
+    again = sweep_ground(res, imgs, [0.0, 1.0, 0.0])  # the same photos, the same ground (the multi-view tests reuse it)
+    assert again.depth == g.depth and np.array_equal(again.scores, g.scores)
 
 
 def test_a_ground_without_texture_tells_no_depth_apart():

@@ -14,29 +14,50 @@ pytest.importorskip("pycolmap", reason="pycolmap is not installed (multi-view Sf
 
 @pytest.fixture(scope="module")
 def run(gl, tmp_path_factory):
-    """The capture and its multiview run; SfM runs once for the module's runs of the same photos.
+    """The capture and its multiview run; SfM, the tree frame and the mattes run once for the module's runs
+    of the same photos.
 
-    COLMAP is deterministic on the same photos and seed (tests/sfm/test_colmap.py checks it), and
-    the later runs here test what comes after it (other mattes, --height): they reuse the first
-    registration instead of spending SfM's time again.
+    COLMAP is deterministic on the same photos and seed (tests/sfm/test_colmap.py checks it), and so are
+    the frame and the mattes (tests/sfm/test_align.py and test_sweep.py; the threads test below): the later runs here test
+    what comes after them (other mattes, leaves, --height) and reuse the first run's results (copies of
+    them, keyed by every input and setting they read) instead of spending their time again.
     """
+    import copy
+
+    import treeform.methods.multiview.pipeline as mv
     import treeform.sfm as sfm_api
     from treeform.dataset.capture import synthetic_capture
     from treeform.methods.multiview.pipeline import reconstruct_multiview
 
-    registered = {}
-    run_sfm = sfm_api.run_sfm
+    done = {}
+    run_sfm, to_tree_frame, segment_views = sfm_api.run_sfm, sfm_api.to_tree_frame, mv._segment_views
 
-    def once(views, **kw):
-        key = (tuple(v.name for v in views), tuple(sorted(kw.items())))
-        if key not in registered:
-            registered[key] = run_sfm(views, **kw)
-        return registered[key]
+    def memo(key, make):
+        if key not in done:
+            done[key] = make()
+        return copy.deepcopy(done[key]) if key[0] != "sfm" else done[key]
+
+    def sfm_once(views, **kw):
+        return memo(("sfm", tuple(v.name for v in views), tuple(sorted(kw.items()))), lambda: run_sfm(views, **kw))
+
+    def frame_once(result, **kw):
+        if any(not isinstance(v, (int, float, str, type(None))) for k, v in kw.items() if k != "images"):
+            return to_tree_frame(result, **kw)
+        key = ("frame", id(result), tuple(sorted((k, v) for k, v in kw.items() if k != "images")))
+        return memo(key, lambda: to_tree_frame(result, **kw))
+
+    def mattes_once(views, sfm, cfg, masks=None):
+        key = ("mattes", tuple(v.name for v in views), tuple(sfm.names), str(masks), mv.MATTE_THREADS,
+               mv.TILE_WOOD_FROM, cfg.segmenter, cfg.mask_size, cfg.matte_side, cfg.seed, cfg.tile_wood,
+               cfg.thin_wood, cfg.sky_gaps)
+        return memo(key, lambda: segment_views(views, sfm, cfg, masks))
 
     base = tmp_path_factory.mktemp("mv")
     cap = synthetic_capture(base / "capture", views=24, size=480, species="oak", seed=0)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sfm_api, "run_sfm", once)
+        mp.setattr(sfm_api, "run_sfm", sfm_once)
+        mp.setattr(sfm_api, "to_tree_frame", frame_once)
+        mp.setattr(mv, "_segment_views", mattes_once)
         res = reconstruct_multiview(cap.out / "images", out=base / "out", mask_size=320, leaves=1500, lod="low",
                                     segmenter="learned", seed=0, cells=200, surface_cells=100, leaf_texture="photo")
         yield cap, res, base / "out"
