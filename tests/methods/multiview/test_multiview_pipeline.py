@@ -312,9 +312,11 @@ def test_leaves_from_the_photos_leaf_regions(run, tmp_path, monkeypatch):
     """leaf_placement='segments' (seed 002 §6): leaves from each view's regions, placed on the hull,
     de-duplicated, the sparse branches synthesized; same seed, same model.
 
-    Determinism without a second run of the whole route: everything before the leaves must equal
-    the module's first run (same photos and seed, other leaves), and the leaf stage, called again
-    on the inputs and generator state this run gave it, must give the same leaves."""
+    Determinism without a second run of the whole route: the stages before the leaves must give the
+    module's first run's points, labels and skeleton (same photos and seed, other leaves; SfM, the frame
+    and the mattes are that run's, reused by the fixture, so the carving and the skeleton are what is
+    checked), and the leaf stage, called again on the inputs and generator state this run gave it, must
+    give the same leaves."""
     import copy
 
     from scipy.spatial import cKDTree
