@@ -351,9 +351,13 @@ def main():
           "ones score 99.5 / 98.25 % and 8.17 / 8.26 % on the stage-2 segmenter's masks, so their weights were "
           "kept rather than committed again.",
           "- On the real photos the network finds the main tree and keeps yellow and red crowns foliage, but "
-          "takes a house front into one tree (Ulmus americana 1), misses the lower half of a bare-branched "
-          "honey locust (Gleditsia triacanthos 2) and splits a bare white sycamore (Platanus occidentalis 2) "
-          "(`python benchmarks/eval_segment_photos.py` shows both segmenters on every photo).",
+          "takes a house front into one tree (Ulmus americana 1), the lawn and path under a crown that fills "
+          "the frame into another (Platanus occidentalis 1), a dark neighbour's crown into a bright one (Acer "
+          "saccharinum 2) and planters behind a tree's foot into Acer rubrum 2, misses the lower half of a "
+          "bare-branched honey locust (Gleditsia triacanthos 2) and splits a bare white sycamore (Platanus "
+          "occidentalis 2) (`python benchmarks/eval_segment_photos.py` shows both segmenters on every photo). "
+          "Rules after the network (sharpness, colour, certainty) and other input sizes or flips move these "
+          "photos both ways (BENCHMARKS.md): training on such scenes is the fix left.",
           "- The whole segmentation is slower with the matting of the edge band (about 0.4 s on the 512-px "
           "sample photo, whose blue sky shows through the crown; the guided filter alone is faster, "
           "`segment_tree_learned(refine='guided')`).",
