@@ -35,14 +35,13 @@ def run(gl, tmp_path_factory):
     def memo(key, make):
         if key not in done:
             done[key] = make()
+        # SfM's result is handed out as it is (the frame's key is its identity), the later stages' as copies
         return copy.deepcopy(done[key]) if key[0] != "sfm" else done[key]
 
     def sfm_once(views, **kw):
         return memo(("sfm", tuple(v.name for v in views), tuple(sorted(kw.items()))), lambda: run_sfm(views, **kw))
 
-    def frame_once(result, **kw):
-        if any(not isinstance(v, (int, float, str, type(None))) for k, v in kw.items() if k != "images"):
-            return to_tree_frame(result, **kw)
+    def frame_once(result, **kw):  # the images are those of the SfM result's photos
         key = ("frame", id(result), tuple(sorted((k, v) for k, v in kw.items() if k != "images")))
         return memo(key, lambda: to_tree_frame(result, **kw))
 
