@@ -1,5 +1,6 @@
 """Quality on real photos: reconstruct every photo of ../shared/data/photos with a given isolation
-rating and report reprojection error, IoU, depth/width, front SSIM and colour distance. Writes out/eval/<name>/ and a summary.
+rating and report reprojection error, IoU, depth/width, front SSIM, colour distance and how open the
+side view is beside the photo's own tree mask (``silhouette_gaps``). Writes out/eval/<name>/ and a summary.
 
 Run: `.venv/bin/python benchmarks/eval_photos.py [--rating isolated] [--method envelope|learned|abs]
 [--segmenter learned] [--candidates N] [--out out/eval]`
@@ -63,6 +64,12 @@ def main():
         rows[stem] = {k: m[k] for k in ("reprojection_error", "iou", "depth_width_ratio", "front_ssim",
                                         "front_color_distance", "side_color_distance", "stems_at_5_percent",
                                         "total_seconds")}
+        # how open the crown is from the side, beside the photo's own tree mask (a solid ball scores 0)
+        from treeform.metrics import silhouette_gaps
+
+        if "side" in getattr(res, "renders", {}):
+            rows[stem]["side_gaps"] = silhouette_gaps(res.renders["side"].mask)
+            rows[stem]["photo_gaps"] = silhouette_gaps(res.segmentation.tree_mask)
         for k in ("search_error_first", "search_error_best", "n_branches"):  # abs: the search's gain
             if k in m:
                 rows[stem][k] = m[k]
@@ -84,6 +91,9 @@ def main():
                "median_side_color_distance": statistics.median(r["side_color_distance"] for r in ok) if ok else None,
                "depth_width_min": min(dws) if dws else None, "depth_width_max": max(dws) if dws else None,
                "per_photo": rows}
+    if ok and "side_gaps" in ok[0]:
+        summary["median_side_gaps"] = statistics.median(r["side_gaps"] for r in ok)
+        summary["median_photo_gaps"] = statistics.median(r["photo_gaps"] for r in ok)
     if ok and "search_error_first" in ok[0]:
         summary["median_search_error_first"] = statistics.median(r["search_error_first"] for r in ok)
         summary["median_search_error_best"] = statistics.median(r["search_error_best"] for r in ok)

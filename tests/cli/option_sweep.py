@@ -56,6 +56,7 @@ VALID = {
     ("animate", "--direction", "0"): "an angle",
     ("animate", "--direction", "1e12"): "an angle, taken modulo 360",
     ("reconstruct", "--rdm-rotations", "0"): "0 = no extra rotations",
+    ("reconstruct", "--clumps", "0"): "0 = leaves spread evenly, no clumps (documented)",
     ("eval", "--viewer", "0"): "no case in the 3D viewer",
     ("forest", "--switch-distance", "0"): "every tree a relief impostor",
     ("forest", "--switch-distance", "1e12"): "every tree a billboard cloud",

@@ -52,12 +52,28 @@ def test_novel_views_score_one_for_the_same_tree_and_see_a_wrong_depth(gl):
 
     tree = Mesh([_box((0.0, 3.0, 0.0), np.array([1.0, 3.0, 1.0], np.float32))])
     same = novel_view_ious(tree, tree, size=64)
-    assert all(v == pytest.approx(1.0) for v in same.values()) and set(same) == {"iou_front", "iou_side",
-                                                                                  "iou_back", "iou_top"}
+    assert set(same) == {"iou_front", "iou_side", "iou_back", "iou_top", "gap_err_side", "gap_err_back", "gap_err_top"}
+    assert all(same[k] == pytest.approx(1.0) for k in same if k.startswith("iou"))
+    assert all(same[k] == 0.0 for k in same if k.startswith("gap"))
     flat = Mesh([_box((0.0, 3.0, 0.0), np.array([1.0, 3.0, 0.25], np.float32))])  # right from the front, thin in depth
     s = novel_view_ious(tree, flat, size=64)
     assert s["iou_front"] > 0.95 and s["iou_back"] > 0.95
     assert s["iou_side"] < 0.4 and s["iou_top"] < 0.4
+
+
+def test_novel_views_tell_a_solid_crown_from_one_of_clumps(gl):
+    """IoU alone cannot: a solid crown and one of eight clumps in its place overlap much; the gap error sees the
+    sky between the clumps from every side."""
+    from treeform.evaluation import novel_view_ious
+    from treeform.structures import Mesh
+
+    solid = Mesh([_box((0.0, 3.0, 0.0), np.array([1.0, 1.0, 1.0], np.float32))])
+    clumps = Mesh([_box((x, 3.0 + y, z), np.full(3, 0.4, np.float32), name=f"leaves{i}")
+                   for i, (x, y, z) in enumerate((x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5)
+                                                  for z in (-0.5, 0.5))])
+    s = novel_view_ious(solid, clumps, size=64)
+    assert s["iou_side"] > 0.6 and s["iou_top"] > 0.6, s  # the clumps cover 0.64 of the solid's outline
+    assert min(s["gap_err_side"], s["gap_err_back"], s["gap_err_top"]) > 0.15, s
 
 
 def test_a_multiview_tree_is_scored_where_its_cameras_place_it(gl):

@@ -104,6 +104,21 @@ def test_preview_labels_every_panel_and_shows_the_whole_tree(run):
     assert (direct != res.renders["front"].mask[window]).mean() < 1e-3
 
 
+def test_the_crown_grows_in_clumps_with_sky_between_them_from_the_side_and_above():
+    """Foliage spread evenly through the envelope made every side a solid ball (a clipped hedge); a real
+    crown shows lobes and gaps between its limbs' clumps. The photo's own view keeps its leaves."""
+    from treeform.metrics import silhouette_gaps
+
+    opts = {**FAST, "leaves": 6000}  # cards near their default size: FAST's few large cards close every gap
+    clumped = reconstruct(SAMPLE, seed=0, **opts)
+    even = reconstruct(SAMPLE, seed=0, clumps=0, **opts)
+    gaps = {k: [silhouette_gaps(r.renders[k].mask) for r in (clumped, even)] for k in ("side", "top")}
+    assert gaps["side"][0] > gaps["side"][1] + 0.01 and gaps["top"][0] > gaps["top"][1] + 0.03, gaps
+    for key, tol in (("reprojection_error", 0.01), ("front_ssim", -0.03)):
+        assert (clumped.metrics[key] - even.metrics[key]) * (1 if tol > 0 else -1) < abs(tol), key
+    assert clumped.metrics["leaves"] == even.metrics["leaves"]
+
+
 def test_metrics_report_the_trees_size_as_treeform_metrics_does(run):
     from treeform.metrics import tree_metrics
     from treeform.structures import TreeSkeleton

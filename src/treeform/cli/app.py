@@ -180,6 +180,11 @@ def reconstruct(
     rdm_rotations: Optional[str] = typer.Option(
         None, "--rdm-rotations", metavar="DEG,DEG", help="envelope: extra copies of the envelope turned about the "
                                                          "vertical axis, e.g. 60,120 (the RDM keeps the largest radius)."),
+    clumps: Optional[float] = typer.Option(
+        None, "--clumps", min=0.0, max=10.0,
+        help="envelope: spacing of the crown's foliage clumps as a fraction of its mean radius (default 0.4): "
+             "leaves and the branches that carry them gather there, so the side and top show lobes, gaps and "
+             "limbs; 0 spreads the leaves evenly (a solid crown from the side)."),
     colonization: Optional[Colonization] = typer.Option(
         None, "--colonization", help="envelope: space colonization 'coarse' (default: D = 0.04 r, branches "
                                      "leaving at about 45 degrees) or 'paper' (full detail: d_k = 0.01 r, D = 0.5 d_k, "
@@ -214,7 +219,7 @@ def reconstruct(
         raise typer.Exit(2)
 
     envelope_only = {"--leaf-texture": leaf_texture, "--profile": profile, "--k": k, "--depth-ratio": depth_ratio,
-                     "--rdm-rotations": rdm_rotations, "--colonization": colonization,
+                     "--rdm-rotations": rdm_rotations, "--colonization": colonization, "--clumps": clumps,
                      "--form": None if form is Form.auto else form}
     given = [name for name, v in envelope_only.items() if v is not None]
     if candidates is not None and method is not Method.abs:
@@ -264,6 +269,8 @@ def reconstruct(
             extra["depth_ratio"] = depth_ratio
         if profile is not None:
             extra["profile"] = profile.value
+        if clumps is not None:
+            extra["clumps"] = clumps
         kw = dict(crown=crown.value, form=form.value, leaves=8000 if leaves is None else leaves, lod=lod.value,
                   tree_height=10.0 if height is None else height,
                   segmenter=(segmenter or SegmenterName(DEFAULT_SEGMENTER)).value, foliage=foliage.value,

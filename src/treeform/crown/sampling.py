@@ -10,7 +10,7 @@ from treeform._shared.rng import as_rng
 
 
 def sample_crown_columns(mask: np.ndarray, front_z: np.ndarray, n: int, *, shell_power: float = 2.0,
-                         seed=None) -> np.ndarray:
+                         weight=None, candidates: int = 8, seed=None) -> np.ndarray:
     """Sample ``n`` points whose projections cover ``mask`` uniformly, inside the envelope.
 
     A leaf's contribution to the picture depends on the pixel it covers, not on the
@@ -30,6 +30,14 @@ def sample_crown_columns(mask: np.ndarray, front_z: np.ndarray, n: int, *, shell
     n : int
     shell_power : float
         0 = uniform in depth; larger values push the points toward the surfaces.
+    weight : callable, optional
+        ``weight(uvz (K, 3)) -> (K,)`` non-negative density over the crown (e.g. its foliage
+        clumps, :func:`clump_density`): each point draws ``candidates`` depths as above and
+        keeps one with probability proportional to its weight (sampling importance
+        resampling), so the points gather where the weight is high along their column while
+        every pixel keeps its share of them.
+    candidates : int
+        Depths drawn per point when ``weight`` is given.
 
     Returns
     -------
@@ -55,10 +63,21 @@ def sample_crown_columns(mask: np.ndarray, front_z: np.ndarray, n: int, *, shell
     pick = order[np.minimum(((np.arange(n) + rng.random(n)) * len(ys) / n).astype(np.int64), len(ys) - 1)]
     u = xs[pick] + rng.random(n)
     v = ys[pick] + rng.random(n)
-    t = rng.random(n) ** (1.0 / (1.0 + shell_power))
-    sign = np.where(rng.random(n) < 0.5, -1.0, 1.0)
-    z = sign * t * front_z[ys[pick], xs[pick]]
-    return np.stack([u, v, z], axis=1)
+    zf = front_z[ys[pick], xs[pick]]
+    if weight is not None and int(candidates) < 1:
+        raise InputError(f"candidates: expected a positive count, got {candidates}")
+    if weight is None:
+        t = rng.random(n) ** (1.0 / (1.0 + shell_power))
+        sign = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+        return np.stack([u, v, sign * t * zf], axis=1)
+    m = int(candidates)
+    t = rng.random((n, m)) ** (1.0 / (1.0 + shell_power))
+    z = np.where(rng.random((n, m)) < 0.5, -1.0, 1.0) * t * zf[:, None]
+    cand = np.stack([np.repeat(u, m), np.repeat(v, m), z.ravel()], axis=1)
+    w = np.maximum(np.asarray(weight(cand), np.float64).reshape(n, m), 0) + 1e-9
+    c = np.cumsum(w, axis=1)
+    k = np.minimum((c < rng.random(n)[:, None] * c[:, -1:]).sum(1), m - 1)
+    return np.stack([u, v, z[np.arange(n), k]], axis=1)
 
 
 def _morton(ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
@@ -443,3 +462,90 @@ def fill_silhouette(skeleton, foliage, camera, mask, rbv, *, mpp: float, depth_s
     return Foliage(np.concatenate([foliage.positions, new.positions]), np.concatenate([foliage.normals, new.normals]),
                    np.concatenate([foliage.up, new.up]), np.concatenate([foliage.size, new.size]),
                    np.concatenate([foliage.color, color]), np.concatenate([foliage.node, new.node]))
+
+
+
+def foliage_clumps(contains, bounds, spacing: float, *, max_clumps: int = 2000, seed=None) -> np.ndarray:
+    """Centres of a crown's foliage clumps: blue-noise points about ``spacing`` apart inside it.
+
+    A real crown's leaves grow in clumps at the ends of its limbs, with air between them
+    (from the side a crown shows lobes, gaps and the limbs inside). The clumps are spread
+    evenly (:func:`treeform.growth.sampling.blue_noise_points`), one per ``spacing**3`` of
+    the crown's volume (estimated from 4,000 uniform probes of ``bounds``).
+
+    Parameters
+    ----------
+    contains : callable
+        ``contains(points (N, 3)) -> (N,) bool``, the crown's volume.
+    bounds : (array_like (3,), array_like (3,))
+        A box around it.
+    spacing : float
+        Mean distance between neighbouring clumps, in the points' units.
+    max_clumps : int
+        At most this many (a volume far longer than wide, where ``spacing`` is set by its
+        mean radius, then gets wider spacing instead of a million clumps).
+    seed : int or Generator, optional
+
+    Returns
+    -------
+    ndarray, shape (K, 3)
+        4 to ``max_clumps`` centres (fewer only if the volume holds fewer).
+
+    Examples
+    --------
+    >>> c = foliage_clumps(lambda p: np.linalg.norm(p, axis=1) < 1, ([-1] * 3, [1] * 3), 0.5, seed=0)
+    >>> 25 <= len(c) <= 40, bool(np.linalg.norm(c, axis=1).max() < 1)
+    (True, True)
+    """
+    from treeform.growth.sampling import blue_noise_points
+
+    if not spacing > 0:
+        raise InputError(f"spacing: expected a positive distance, got {spacing}")
+    rng = as_rng(seed)
+    lo, hi = (np.asarray(b, np.float64).reshape(3) for b in bounds)
+    probe = rng.uniform(lo, hi, size=(4000, 3))
+    volume = float(np.prod(np.maximum(hi - lo, 0.0))) * float(np.mean(contains(probe)))
+    n = int(np.clip(round(volume / spacing ** 3), 4, max(4, int(max_clumps))))
+    return blue_noise_points(contains, (lo, hi), n, seed=rng)
+
+
+def clump_density(points: np.ndarray, centres: np.ndarray, sigma: float) -> np.ndarray:
+    """Foliage density in (0, 1] at ``points``: ``exp(-d^2 / (2 sigma^2))``, d to the nearest clump centre.
+
+    Examples
+    --------
+    >>> clump_density(np.array([[0, 0, 0], [1, 0, 0.]]), np.zeros((1, 3)), 1.0).round(3).tolist()
+    [1.0, 0.607]
+    """
+    from scipy.spatial import cKDTree
+
+    pts = check_array(points, "points", shape=(None, 3)).astype(np.float64)
+    ctr = check_array(centres, "centres", shape=(None, 3), min_size=1).astype(np.float64)
+    if not sigma > 0:
+        raise InputError(f"sigma: expected a positive width, got {sigma}")
+    d, _ = cKDTree(ctr).query(pts)
+    return np.exp(-0.5 * (d / sigma) ** 2)
+
+
+def thinned(contains, density, *, seed=None):
+    """``contains`` that also keeps each point with probability ``density(point)`` (rejection).
+
+    Turns a volume test into one that samplers (:func:`sample_rdm_shell`,
+    :func:`treeform.growth.sampling.blue_noise_points`) use to draw points with that density
+    inside the volume; same seed and calls, same answers.
+
+    Examples
+    --------
+    >>> keep = thinned(lambda p: p[:, 0] > 0, lambda p: np.full(len(p), 0.5), seed=0)
+    >>> ok = keep(np.ones((1000, 3)))
+    >>> bool(400 < ok.sum() < 600), bool(keep(-np.ones((5, 3))).any())
+    (True, False)
+    """
+    rng = as_rng(seed)
+
+    def keep(points):
+        ok = np.asarray(contains(points), bool).copy()
+        if ok.any():
+            ok[ok] = rng.random(int(ok.sum())) < density(points[ok])
+        return ok
+    return keep

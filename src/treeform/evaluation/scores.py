@@ -8,7 +8,9 @@ All figures are plain floats (JSON-ready); a score the case cannot support is ab
   camera azimuth, trunk bases at the origin; a single-photo reconstruction scaled to the true
   height about its own base, a multi-view one as its registered cameras place it in the
   truth's frame), silhouettes from 90°, 180° and above through the same near-orthographic
-  camera, IoU;
+  camera, IoU; and from those sides how open each crown is (``gap_err_side`` etc.: the absolute
+  difference of the two silhouettes' :func:`~treeform.metrics.silhouette_gaps`), which IoU cannot
+  tell: a solid ball where the true crown has lobes and holes scores well on IoU;
 - RBV error per level: mean absolute difference of the normalised radii, in % (seed 003
   Table 1), reconstruction's RBV vs the true one in that frame;
 - tree-form metric distances (seed 003 §6): relative error of height, trunk diameter, LAI (each
@@ -102,9 +104,11 @@ def novel_view_ious(gt_mesh, rec_mesh, *, size: int = 160) -> dict:
     Returns
     -------
     dict
-        ``{"iou_front", "iou_side", "iou_back", "iou_top"}`` in [0, 1].
+        ``{"iou_front", "iou_side", "iou_back", "iou_top"}`` in [0, 1], and ``gap_err_side``,
+        ``gap_err_back``, ``gap_err_top``: how far the reconstruction's share of open sky
+        inside its outline is from the truth's (:func:`~treeform.metrics.silhouette_gaps`).
     """
-    from treeform.metrics import iou
+    from treeform.metrics import iou, silhouette_gaps
     from treeform.render import Renderer
 
     (la, ha), (lb, hb) = gt_mesh.bounds(), rec_mesh.bounds()
@@ -120,6 +124,8 @@ def novel_view_ious(gt_mesh, rec_mesh, *, size: int = 160) -> dict:
             a = renderer.render(gt_mesh).mask
             b = renderer.render(rec_mesh).mask
             out[f"iou_{k}"] = round(float(iou(b, a)), 4)
+            if k != "front":  # the front's gaps are the photo's (the front IoU scores them)
+                out[f"gap_err_{k}"] = round(abs(silhouette_gaps(b) - silhouette_gaps(a)), 4)
     finally:
         renderer.release()
     return out

@@ -11,6 +11,7 @@ SUMMARY_SCORES = (
     ("iou_side", "side IoU 90°"),
     ("iou_back", "back IoU 180°"),
     ("iou_top", "top IoU"),
+    ("gap_err_side", "side gaps err."),
     ("rbv_err_l1", "RBV L1 %"),
     ("rbv_err_l3", "RBV L3 %"),
     ("rbv_err_l5", "RBV L5 %"),

@@ -91,6 +91,11 @@ class EnvelopeConfig:
     shell_leaves: float = 0.35
     """Share of the leaves sampled on the RDM's 3D shell (covers side and top views); the rest
     are spread evenly over the photo's crown pixels (covers the front view)."""
+    clumps: float = 0.4
+    """Spacing of the crown's foliage clumps, as a fraction of the mean crown radius: leaves and
+    branch attractors gather around blue-noise centres this far apart, so the side, back and top
+    show lobes, gaps and limbs as real crowns do (:func:`treeform.crown.sampling.foliage_clumps`);
+    the photo's view keeps every leaf pixel. 0: foliage spread evenly through the envelope."""
     beyond_frame: bool = True
     """Continue a crown the photo's top or side edges cut past them, rounded
     (:func:`treeform.crown.frame.beyond_frame`), instead of cutting the model flat at the frame."""
@@ -129,6 +134,7 @@ class EnvelopeConfig:
         for name in ("depth_ratio", "segment_length", "kill_factor", "influence", "pipe_exponent", "leaf_coverage"):
             check_positive(getattr(self, name), name)
         check_positive(self.relief_weight, "relief_weight", allow_zero=True)
+        check_positive(self.clumps, "clumps", allow_zero=True)
         check_positive(self.direction_weight, "direction_weight", allow_zero=True)
         if not isinstance(self.beyond_frame, bool):
             raise InputError(f"beyond_frame: expected true or false, got {self.beyond_frame!r}")

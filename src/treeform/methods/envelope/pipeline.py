@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from contextlib import nullcontext
+from functools import partial
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +26,14 @@ from treeform.structures import Camera, Foliage, Mesh, Photo, RadialDistanceMap,
 
 OUTPUT_FILES = ("tree.glb", "tree.obj", "tree.mtl", "skeleton.json", "skeleton.ply", "preview.png",
                 "metrics.json", "config.json")
+
+CLUMP_LEAF_WIDTH = 0.2
+"""Width (sigma) of a foliage clump's leaf density, as a fraction of the clumps' spacing."""
+CLUMP_BRANCH_WIDTH = 0.25
+"""Width of a clump's attractor density (wider: the twigs reach every leaf of the clump)."""
+CLUMP_BRANCH_FLOOR = 0.1
+"""Attractor density between the clumps (limbs cross the gaps to reach them; also bounds the
+sampling's rejections in a crown far longer than wide)."""
 
 STAGES = ("load", "segment", "envelope", "relief", "rdm", "attractors", "colonize", "leaves", "mesh",
           "render", "export")
@@ -222,13 +231,22 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         return ok
 
     with timer.stage("attractors"):
+        from treeform.crown.sampling import clump_density, foliage_clumps, thinned
         from treeform.growth.sampling import blue_noise_points
 
         lo, hi = rdm.bounds()
+        leaf_density, grow_into = None, inside
+        if cfg.clumps > 0:  # leaves and the branches that carry them gather in clumps
+            spacing = cfg.clumps * r_mean
+            centres = foliage_clumps(inside, (lo, hi), spacing, seed=rng)
+            leaf_density = partial(clump_density, centres=centres, sigma=CLUMP_LEAF_WIDTH * spacing)
+            if form != "conifer":  # a conifer's laterals leave its leader evenly, whorl after whorl
+                grow_into = thinned(inside, lambda p: CLUMP_BRANCH_FLOOR + (1 - CLUMP_BRANCH_FLOOR) *
+                                    clump_density(p, centres, CLUMP_BRANCH_WIDTH * spacing), seed=rng)
         # as many attractors in the photo's crown as without the crown past the frame (their density
         # sets the branches' and the photo's view of them)
         n_att = int(round(cfg.attractors * min(crown_full.sum() / max(layout.crown_mask.sum(), 1), 2.0)))
-        attractors = blue_noise_points(inside, (lo, hi), n_att, seed=rng)
+        attractors = blue_noise_points(grow_into, (lo, hi), n_att, seed=rng)
     with timer.stage("colonize"):
         from treeform.growth.radii import branch_orders, pipe_model_radii
         from treeform.growth.space_colonization import space_colonization
@@ -286,14 +304,16 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         # the crown's depth at each pixel comes from the RDM (relief, rotated copies): march rays
         crown_z = rdm_front_height(rdm, cam, dist, mpp, leaf_mask.shape)
         crown_z = np.where(crown_z > 0, crown_z, front_z)
+        weight = None if leaf_density is None else (lambda c: leaf_density(_pixels_to_world(cam, mpp, c)))
         uvz = sample_crown_columns(core if core.sum() > 0.5 * leaf_mask.sum() else leaf_mask, crown_z,
-                                   cfg.leaves - n_shell, seed=rng)
+                                   cfg.leaves - n_shell, weight=weight, seed=rng)
         # the shell's leaves also dress the crown past the frame (the photo shows none of them: the
         # leaves it sees keep their number, within the same triangle budget)
         hull_core = on_canvas(core)
-        shell_pts = sample_rdm_shell(rdm, n_shell, keep=lambda p: visual_hull_contains(cam, hull_core, p,
-                                                                                        offset=(ptop, pleft)),
-                                     seed=rng)
+        def in_hull(p):
+            return visual_hull_contains(cam, hull_core, p, offset=(ptop, pleft))
+        shell_pts = sample_rdm_shell(rdm, n_shell, keep=in_hull if leaf_density is None else
+                                     thinned(in_hull, leaf_density, seed=rng), seed=rng, max_rounds=60)
         pts = np.concatenate([_pixels_to_world(cam, mpp, uvz), shell_pts])
         suv = cam.project(shell_pts)
         uvz = np.concatenate([uvz, np.column_stack([suv[:, :2], (dist - suv[:, 2]) / mpp])])
