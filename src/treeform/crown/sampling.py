@@ -464,7 +464,6 @@ def fill_silhouette(skeleton, foliage, camera, mask, rbv, *, mpp: float, depth_s
                    np.concatenate([foliage.color, color]), np.concatenate([foliage.node, new.node]))
 
 
-
 def foliage_clumps(contains, bounds, spacing: float, *, max_clumps: int = 2000, seed=None) -> np.ndarray:
     """Centres of a crown's foliage clumps: blue-noise points about ``spacing`` apart inside it.
 

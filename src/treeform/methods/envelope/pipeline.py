@@ -10,8 +10,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from contextlib import nullcontext
-from functools import partial
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
