@@ -23,6 +23,7 @@ def main():
 
     from treeform._shared.errors import TreeformError
     from treeform.methods import METHODS
+    from treeform.metrics import silhouette_gaps
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--rating", default="isolated")
@@ -65,8 +66,6 @@ def main():
                                         "front_color_distance", "side_color_distance", "stems_at_5_percent",
                                         "total_seconds")}
         # how open the crown is from the side, beside the photo's own tree mask (a solid ball scores 0)
-        from treeform.metrics import silhouette_gaps
-
         if "side" in getattr(res, "renders", {}):
             rows[stem]["side_gaps"] = silhouette_gaps(res.renders["side"].mask)
             rows[stem]["photo_gaps"] = silhouette_gaps(res.segmentation.tree_mask)
