@@ -227,6 +227,55 @@ def test_exif_orientation(tmp_path):
     assert p.image[5, -5, 0] > 200 and p.image[5, 5, 0] < 50  # marker now at the top-right
 
 
+def test_read_cutout_alpha_and_straight_colours(tmp_path):
+    from treeform.io.images import read_cutout
+
+    rgba = np.zeros((40, 40, 4), np.uint8)
+    rgba[..., :3] = (200, 30, 10)  # the colour under the transparency too (straight alpha)
+    rgba[:20, :, 3] = 255
+    rgba[20:24, :, 3] = 153  # a half-transparent rim: 0.6
+    Image.fromarray(rgba).save(tmp_path / "c.png")
+    alpha, rgb = read_cutout(tmp_path / "c.png", (40, 40))
+    assert alpha.dtype == np.float32 and alpha.shape == (40, 40)
+    assert alpha[5, 5] == 1.0 and alpha[22, 5] == pytest.approx(0.6, abs=0.01) and alpha[30, 5] == 0.0
+    assert rgb[22, 5].tolist() == [200, 30, 10]  # the rim's own colour, not a blend with white
+    assert read_photo(tmp_path / "c.png").image[22, 5].tolist() != [200, 30, 10]  # what read_photo draws
+    half, _ = read_cutout(tmp_path / "c.png", (20, 20))  # at the photo's size (area average)
+    assert half.shape == (20, 20) and half[2, 2] == 1.0 and half[15, 2] == 0.0
+    # not a cut-out: no alpha, opaque everywhere, or nothing opaque
+    Image.fromarray(rgba[..., :3]).save(tmp_path / "rgb.png")
+    opaque = rgba.copy()
+    opaque[..., 3] = 255
+    Image.fromarray(opaque).save(tmp_path / "opaque.png")
+    clear = rgba.copy()
+    clear[..., 3] = 0
+    Image.fromarray(clear).save(tmp_path / "clear.png")
+    for name in ("rgb.png", "opaque.png", "clear.png"):
+        assert read_cutout(tmp_path / name, (40, 40)) is None, name
+    with pytest.raises(InputError, match="no such file"):
+        read_cutout(tmp_path / "missing.png", (40, 40))
+
+
+def test_a_cutout_brings_its_own_mask_to_the_single_photo_methods(tmp_path):
+    from treeform.methods._single_photo import load_photo
+
+    rgba = np.zeros((300, 200, 4), np.uint8)
+    rgba[..., :3] = (30, 140, 40)
+    rgba[40:260, 50:150, 3] = 255
+    rgba[40:260, 150:154, 3] = 153  # a rim that read_photo blends with white
+    Image.fromarray(rgba).save(tmp_path / "tree.png")
+    ph, mask = load_photo(tmp_path / "tree.png", max_size=150)  # read at half size
+    assert ph.shape == (150, 100) and mask.shape == (150, 100)
+    assert mask[20:130, 25:75].all() and mask.sum() == 110 * 52  # the alpha over one half
+    assert ph.image[75, 76].tolist() == [30, 140, 40]  # the rim keeps the tree's colour
+    assert ph.image[5, 5].tolist() == [255, 255, 255]  # the background as read_photo draws it
+    own = np.zeros((150, 100), bool)
+    own[:10] = True
+    assert (load_photo(tmp_path / "tree.png", own, max_size=150)[1] == own).all()  # a given mask wins
+    Image.fromarray(rgba[..., :3]).save(tmp_path / "photo.png")
+    assert load_photo(tmp_path / "photo.png", max_size=150)[1] is None  # a photo: segmented as before
+
+
 # ---------------------------------------------------------------- masks
 def test_read_mask_same_size_any_mode(tmp_path):
     m = np.zeros((40, 60), bool)

@@ -221,6 +221,21 @@ def test_user_mask_overrides_segmentation(tmp_path, run):
     assert res2.metrics["reprojection_error"] < 0.15
 
 
+def test_a_cutouts_alpha_is_its_tree_mask():
+    """An RGBA cut-out (a bundled library tree) is reconstructed from its exact alpha, not segmented."""
+    import cv2
+
+    from treeform.io.images import read_rgba
+
+    cut = ROOT / "src" / "treeform" / "data" / "library" / "oak_1.png"
+    res = reconstruct(cut, seed=0, **FAST)
+    alpha = read_rgba(cut)[..., 3]
+    h, w = res.segmentation.tree_mask.shape
+    truth = cv2.resize(alpha, (w, h), interpolation=cv2.INTER_AREA) >= 128
+    assert (res.segmentation.tree_mask != truth).mean() < 0.002  # the alpha, to its resampling
+    assert res.metrics["reprojection_error"] < 0.2
+
+
 def test_conical_crown_and_lod(tmp_path):
     low = reconstruct(SAMPLE, crown="conical", lod="low", **FAST)
     assert low.mesh.n_triangles <= 20_000

@@ -131,7 +131,8 @@ IMPOSTOR_HELP = ("Also write impostor/: the colour cubemap, radial distance map 
 
 @app.command()
 def reconstruct(
-    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...)."),
+    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...), or a cut-out "
+                                 "(RGBA PNG / WebP: its alpha is the tree mask, no segmentation)."),
     method: Method = typer.Option(Method.envelope, "--method",
                                   help="'envelope': crown envelope + radial distance map + space colonization "
                                        "(Argudo et al. 2016); 'learned': networks + bi-modal growth (Li et al. 2021); "

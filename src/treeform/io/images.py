@@ -255,6 +255,56 @@ def read_mask(path, shape) -> np.ndarray:
     return np.ascontiguousarray(mask)
 
 
+def read_cutout(path, shape, *, min_clear: float = 0.01) -> tuple[np.ndarray, np.ndarray] | None:
+    """A cut-out's alpha and straight colours at a photo's size, or None for an opaque image.
+
+    A tree cut out of its background (an RGBA PNG or WebP, the input of ``treeform billboard``)
+    carries its exact mask in its alpha. :func:`read_photo` composites it over white; this
+    reads what that drops: the alpha, and the colours the transparency hid (so a leaf's
+    half-transparent rim keeps its own colour, not a blend with white). The EXIF orientation
+    is applied and both are resized to ``shape`` (area average), as :func:`read_photo` resizes.
+
+    Parameters
+    ----------
+    path : str or path-like
+    shape : tuple of int (H, W)
+        The photo's size (``Photo.shape``), same aspect ratio.
+    min_clear : float
+        Share of the image that must be transparent (alpha < 0.5) for it to be a cut-out; an
+        image with an alpha channel but (nearly) opaque everywhere is a photo.
+
+    Returns
+    -------
+    alpha : ndarray, shape (H, W), float32 in [0, 1]
+    rgb : ndarray, shape (H, W, 3), uint8
+        Or None when the image has no alpha, is opaque, or is transparent everywhere.
+
+    Raises
+    ------
+    InputError
+        The file is unreadable (see :func:`read_photo`).
+    """
+    Image, _, _ = _pil()
+    H, W = (int(s) for s in shape)
+    path = Path(path)
+    im = _open_image(path)
+    try:
+        if not (im.mode in _ALPHA_MODES or im.mode == "P" or "transparency" in im.info):
+            return None
+        _decode(im, path)
+        rgba = _exif_upright(im).convert("RGBA")
+        if rgba.size != (W, H):
+            rgba = rgba.resize((W, H), Image.Resampling.BOX)
+        a = np.asarray(rgba, dtype=np.uint8)
+    finally:
+        im.close()
+    alpha = a[..., 3].astype(np.float32) / 255.0
+    clear = float((alpha < 0.5).mean())
+    if clear < min_clear or clear >= 1.0:
+        return None
+    return alpha, np.ascontiguousarray(a[..., :3])
+
+
 def read_rgba(path, *, require_alpha: bool = True) -> np.ndarray:
     """Read an RGBA image (a tree, a leaflet; PNG, WebP, TIFF) as an (H, W, 4) uint8 array.
 

@@ -70,13 +70,27 @@ def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: flo
 
 
 def load_photo(photo, mask=None, *, max_size: int) -> tuple[Photo, np.ndarray | None]:
-    """The photo reduced to ``max_size`` on its long side, and the user's tree mask at its size (or None)."""
-    from treeform.io.images import read_mask
+    """The photo reduced to ``max_size`` on its long side, and the user's tree mask at its size (or None).
+
+    A cut-out (an image file whose alpha leaves part of it transparent, e.g. an RGBA PNG of a
+    tree alone) brings its own mask: without ``mask``, its alpha is the tree (over half
+    opaque), and the tree's pixels keep their own colours rather than the blend with white
+    that :func:`~treeform.io.images.read_photo` draws.
+    """
+    from treeform.io.images import read_cutout, read_mask
 
     ph = fit_photo(as_photo(photo, max(max_size, 64)), max_size)
     user_mask = None
     if mask is not None:
         user_mask = read_mask(mask, ph.shape) if not isinstance(mask, np.ndarray) else np.asarray(mask)
+    elif not isinstance(photo, (np.ndarray, Photo)):
+        cut = read_cutout(photo, ph.shape)
+        if cut is not None:
+            alpha, rgb = cut
+            user_mask = alpha >= 0.5
+            image = ph.image.copy()
+            image[user_mask] = rgb[user_mask]
+            ph = Photo(image, ph.source, ph.scale)
     return ph, user_mask
 
 
