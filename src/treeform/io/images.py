@@ -141,6 +141,11 @@ def _gray_to_uint8(a: np.ndarray, mode: str, fmt: str | None) -> np.ndarray:
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
+def _has_alpha(im) -> bool:
+    """Whether an opened image carries transparency (an alpha band or a transparent colour)."""
+    return im.mode in _ALPHA_MODES or "transparency" in im.info
+
+
 def _to_mode(im, mode: str, background: tuple[int, int, int]):
     """Convert ``im`` to ``mode`` ("RGB" or "L"), compositing transparency over ``background``."""
     Image, _, _ = _pil()
@@ -289,7 +294,7 @@ def read_cutout(path, shape, *, min_clear: float = 0.01) -> tuple[np.ndarray, np
     path = Path(path)
     im = _open_image(path)
     try:
-        if not (im.mode in _ALPHA_MODES or im.mode == "P" or "transparency" in im.info):
+        if not _has_alpha(im):
             return None
         _decode(im, path)
         rgba = _exif_upright(im).convert("RGBA")
@@ -336,7 +341,7 @@ def read_rgba(path, *, require_alpha: bool = True) -> np.ndarray:
                 if im.size[0] * im.size[1] > 200_000_000:
                     raise InputError(f"{path}: image too large ({im.size[0]}\u00d7{im.size[1]})")
                 im.load()
-                has_alpha = im.mode in ("RGBA", "LA", "PA", "RGBa", "La") or "transparency" in im.info
+                has_alpha = _has_alpha(im)
                 rgba = np.array(im.convert("RGBA"), dtype=np.uint8)
     except UnidentifiedImageError:
         raise InputError(f"{path}: not an image file (unrecognised format)") from None
