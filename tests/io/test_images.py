@@ -234,6 +234,7 @@ def test_read_cutout_alpha_and_straight_colours(tmp_path):
     rgba[..., :3] = (200, 30, 10)  # the colour under the transparency too (straight alpha)
     rgba[:20, :, 3] = 255
     rgba[20:24, :, 3] = 153  # a half-transparent rim: 0.6
+    rgba[:10, 15:25, 3] = 0  # a gap between two limbs: no tree is a convex shape
     Image.fromarray(rgba).save(tmp_path / "c.png")
     alpha, rgb = read_cutout(tmp_path / "c.png", (40, 40))
     assert alpha.dtype == np.float32 and alpha.shape == (40, 40)
@@ -252,6 +253,16 @@ def test_read_cutout_alpha_and_straight_colours(tmp_path):
     Image.fromarray(clear).save(tmp_path / "clear.png")
     for name in ("rgb.png", "opaque.png", "clear.png"):
         assert read_cutout(tmp_path / name, (40, 40)) is None, name
+    # a photo saved with clear corners (turned a few degrees, or rounded) is a photo, not a cut-out
+    photo = Image.fromarray(np.full((60, 80, 3), 90, np.uint8)).convert("RGBA").rotate(8, expand=True)
+    photo.save(tmp_path / "turned.png")
+    assert (np.asarray(photo)[..., 3] == 0).mean() > 0.05  # its corners are clear ...
+    assert read_cutout(tmp_path / "turned.png", photo.size[::-1]) is None  # ... but it is no tree
+    round_ = rgba.copy()
+    yy, xx = np.mgrid[:40, :40]
+    round_[..., 3] = np.where((yy - 19.5) ** 2 + (xx - 19.5) ** 2 < 19 ** 2, 255, 0)
+    Image.fromarray(round_).save(tmp_path / "round.png")
+    assert read_cutout(tmp_path / "round.png", (40, 40)) is None
     with pytest.raises(InputError, match="no such file"):
         read_cutout(tmp_path / "missing.png", (40, 40))
 
@@ -263,10 +274,11 @@ def test_a_cutout_brings_its_own_mask_to_the_single_photo_methods(tmp_path):
     rgba[..., :3] = (30, 140, 40)
     rgba[40:260, 50:150, 3] = 255
     rgba[40:260, 150:154, 3] = 153  # a rim that read_photo blends with white
+    rgba[40:100, 60:80, 3] = 0  # a gap in the crown (a tree's outline is not convex)
     Image.fromarray(rgba).save(tmp_path / "tree.png")
     ph, mask = load_photo(tmp_path / "tree.png", max_size=150)  # read at half size
     assert ph.shape == (150, 100) and mask.shape == (150, 100)
-    assert mask[20:130, 25:75].all() and mask.sum() == 110 * 52  # the alpha over one half
+    assert mask[50:130, 25:75].all() and mask.sum() == 110 * 52 - 30 * 10  # the alpha over one half
     assert ph.image[75, 76].tolist() == [30, 140, 40]  # the rim keeps the tree's colour
     assert ph.image[5, 5].tolist() == [255, 255, 255]  # the background as read_photo draws it
     own = np.zeros((150, 100), bool)

@@ -260,7 +260,8 @@ def read_mask(path, shape) -> np.ndarray:
     return np.ascontiguousarray(mask)
 
 
-def read_cutout(path, shape, *, min_clear: float = 0.01) -> tuple[np.ndarray, np.ndarray] | None:
+def read_cutout(path, shape, *, min_clear: float = 0.01,
+                max_solidity: float = 0.995) -> tuple[np.ndarray, np.ndarray] | None:
     """A cut-out's alpha and straight colours at a photo's size, or None for an opaque image.
 
     A tree cut out of its background (an RGBA PNG or WebP, the input of ``treeform billboard``)
@@ -277,12 +278,19 @@ def read_cutout(path, shape, *, min_clear: float = 0.01) -> tuple[np.ndarray, np
     min_clear : float
         Share of the image that must be transparent (alpha < 0.5) for it to be a cut-out; an
         image with an alpha channel but (nearly) opaque everywhere is a photo.
+    max_solidity : float
+        A tree's outline is never a convex polygon (a trunk under a crown, gaps between limbs:
+        the 405 cut-outs of the project's data fill 98.4 % of their pixel centres' convex hull
+        at most, a trunkless round shrub of 35 px). Opaque pixels that fill more of their hull
+        than this (a convex shape fills all of it) are a photo with clear corners (turned,
+        rounded), not a tree cut out.
 
     Returns
     -------
     alpha : ndarray, shape (H, W), float32 in [0, 1]
     rgb : ndarray, shape (H, W, 3), uint8
-        Or None when the image has no alpha, is opaque, or is transparent everywhere.
+        Or None when the image has no alpha, is opaque, is transparent everywhere, or its opaque
+        part is a convex shape (``max_solidity``).
 
     Raises
     ------
@@ -306,6 +314,11 @@ def read_cutout(path, shape, *, min_clear: float = 0.01) -> tuple[np.ndarray, np
     alpha = a[..., 3].astype(np.float32) / 255.0
     clear = float((alpha < 0.5).mean())
     if clear < min_clear or clear >= 1.0:
+        return None
+    from skimage.morphology import convex_hull_image
+
+    opaque = alpha >= 0.5
+    if opaque.sum() >= max_solidity * convex_hull_image(opaque, offset_coordinates=False).sum():
         return None
     return alpha, np.ascontiguousarray(a[..., :3])
 

@@ -40,6 +40,10 @@ def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmen
                   seed: int = 0, max_size: int = 4096, progress=None) -> SegmentResult:
     """Segment the main tree of a photo and write its labels.
 
+    A cut-out (an RGBA image of a tree alone) is not segmented: its alpha is the tree, its
+    foliage and wood told apart by colour (:func:`treeform.segment.mask_to_segmentation`), the
+    mask ``reconstruct`` builds from it.
+
     Parameters
     ----------
     photo : path-like or ndarray, shape (H, W, 3), uint8
@@ -65,7 +69,7 @@ def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmen
     """
     from treeform._shared.checks import check_choice
     from treeform.io.outputs import check_out_file
-    from treeform.segment import SEGMENTERS, segment
+    from treeform.segment import SEGMENTERS
 
     check_choice(segmenter, "segmenter", SEGMENTERS)
     out_p = check_out_file(out) if out is not None else None
@@ -74,11 +78,11 @@ def segment_photo(photo, *, out=None, overlay=None, mask=None, wood=None, segmen
     wood_p = check_out_file(wood, "--wood") if wood is not None else None
     timer = StageTimer(progress)
     with timer.stage("load"):
-        from treeform.methods._single_photo import as_photo
+        from treeform.methods._single_photo import load_photo, segment_or_mask
 
-        ph = as_photo(photo, max_size)
+        ph, cut = load_photo(photo, max_size=max_size)
     with timer.stage("segment"):
-        seg = segment(ph.image, method=segmenter, seed=seed, require_tree=True)
+        seg = segment_or_mask(ph.image, cut, segmenter=segmenter, seed=seed)
     files = {}
     with timer.stage("write"):
         from treeform.io.images import write_png
@@ -103,16 +107,16 @@ def classify_species(photo, *, segmenter: str = "learned", seed: int = 0, max_si
                      progress=None) -> dict:
     """Species probabilities ``{name: p}`` (best first) of the main tree of a photo (seed 003 §4.2.4).
 
-    The photo is segmented (``segmenter``) and the species CNN reads the semantic mask.
+    The photo is segmented (``segmenter``) and the species CNN reads the semantic mask. A
+    cut-out's alpha is its tree (as for ``reconstruct``), labelled foliage / wood by colour.
     """
     from treeform.learn.infer import predict_species
-    from treeform.methods._single_photo import load_photo
-    from treeform.segment import segment
+    from treeform.methods._single_photo import load_photo, segment_or_mask
 
     timer = StageTimer(progress)
     with timer.stage("load"):
-        ph, _ = load_photo(photo, max_size=max_size)
+        ph, cut = load_photo(photo, max_size=max_size)
     with timer.stage("segment"):
-        seg = segment(ph.image, method=segmenter, seed=seed, require_tree=True)
+        seg = segment_or_mask(ph.image, cut, segmenter=segmenter, seed=seed)
     with timer.stage("species"):
         return predict_species(seg.labels)
