@@ -358,3 +358,33 @@ def test_write_png_errors(tmp_path):
     with pytest.raises(OutputError, match="directory"):
         write_png(np.zeros((4, 4), np.uint8), tmp_path / "d.png")
     assert [p.name for p in tmp_path.iterdir()] == ["d.png"]
+
+
+def test_phone_formats_read_like_a_png(tmp_path):
+    """HEIC (a phone camera's default) and AVIF photos read as the same photo; a HEIC cut-out keeps its alpha."""
+    import pillow_heif
+
+    from treeform.batch import list_photos
+    from treeform.io.images import read_cutout
+
+    yy, xx = np.mgrid[:120, :90]
+    img = np.stack([xx * 2.5, yy * 2, 255 - xx * 2], -1).astype(np.uint8)
+    img[30:90, 20:60] = (40, 150, 50)
+    Image.fromarray(img).save(tmp_path / "ref.png")
+    pillow_heif.from_pillow(Image.fromarray(img)).save(tmp_path / "IMG_0001.HEIC", quality=95)
+    Image.fromarray(img).save(tmp_path / "IMG_0002.avif", quality=95)
+    ref = read_photo(tmp_path / "ref.png").image.astype(int)
+    for name in ("IMG_0001.HEIC", "IMG_0002.avif"):
+        got = read_photo(tmp_path / name).image.astype(int)
+        assert got.shape == ref.shape, name
+        assert np.abs(got - ref).mean() < 4, name  # lossy, but the same picture
+    assert [p.name for p in list_photos(tmp_path)] == ["IMG_0001.HEIC", "IMG_0002.avif", "ref.png"]
+    rgba = np.zeros((120, 90, 4), np.uint8)
+    rgba[..., :3] = img
+    rgba[20:100, 15:75, 3] = 255
+    rgba[20:60, 40:50, 3] = 0  # a gap in the crown
+    pillow_heif.from_pillow(Image.fromarray(rgba)).save(tmp_path / "cut.heic", quality=95)
+    alpha, _ = read_cutout(tmp_path / "cut.heic", (120, 90))
+    assert ((alpha >= 0.5) == (rgba[..., 3] > 0)).mean() > 0.99
+    (tmp_path / "fake.heic").write_bytes(b"\x00\x00\x00\x18ftypheic" + b"\x00" * 64)
+    _raises_one_line(tmp_path / "fake.heic", "fake.heic")

@@ -23,11 +23,10 @@ import time
 from pathlib import Path
 
 from treeform._shared.errors import InputError
+from treeform.io.images import PHOTO_SUFFIXES
 
 __all__ = ["PHOTO_SUFFIXES", "parse_memory", "free_space", "list_photos", "reconstruct_one", "run_batch"]
 
-PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
-"""File suffixes (any case) taken as photos; other files in the folder are ignored."""
 MANIFEST, FAILURES, SUMMARY = "manifest.json", "failures.json", "summary.html"
 MIN_FREE = "500MB"
 """Default free space a batch keeps on its output disk (a tree's folder takes a few MB)."""

@@ -19,13 +19,13 @@ import numpy as np
 
 from treeform._shared.errors import InputError
 from treeform._shared.noise import periodic_noise
+from treeform.io.images import PHOTO_SUFFIXES
 
 __all__ = ["BACKGROUND_KINDS", "BackgroundPool", "procedural_background"]
 
 BACKGROUND_KINDS = ("park", "field", "street", "city", "forest", "sky")
 """The scene types :func:`procedural_background` paints."""
 
-_PHOTO_SUFFIXES = {".jpg", ".jpeg", ".png", ".webp", ".bmp", ".tif", ".tiff"}
 
 
 def _hsv(h: float, s: float, v: float) -> np.ndarray:
@@ -254,9 +254,9 @@ class BackgroundPool:
         if self.folder is not None:
             if not self.folder.is_dir():
                 raise InputError(f"backgrounds {self.folder}: not a directory")
-            self.photos = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in _PHOTO_SUFFIXES)
+            self.photos = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in PHOTO_SUFFIXES)
             if not self.photos:
-                raise InputError(f"backgrounds {self.folder}: no images (.jpg, .png, .webp, .bmp, .tif)")
+                raise InputError(f"backgrounds {self.folder}: no images ({', '.join(PHOTO_SUFFIXES)})")
 
     def sample(self, size: int, rng: np.random.Generator) -> tuple[np.ndarray, str]:
         """A (size, size, 3) uint8 background and a description ("procedural:<kind>" or the photo's name)."""
@@ -268,7 +268,9 @@ class BackgroundPool:
 
     @staticmethod
     def _crop(path: Path, size: int, rng) -> np.ndarray:
-        from PIL import Image
+        from treeform.io.images import pil_image
+
+        Image = pil_image()
 
         try:
             with Image.open(path) as im:

@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform.io.images import PHOTO_SUFFIXES
 
 __all__ = ["CAPTURE_SIZE", "CAPTURE_VIEWS", "Case", "capture_case", "case_names", "load_case"]
 
-_PHOTO_EXT = (".jpg", ".jpeg", ".png", ".webp", ".tif", ".tiff", ".bmp")
 
 CAPTURE_VIEWS = 24
 """Photos of a ``captures:N`` case (the multi-view method's acceptance capture has 24)."""
@@ -109,7 +109,7 @@ def case_names(cases: str, *, seed: int = 0) -> list[str]:
         folder = Path(arg)
         if not folder.is_dir():
             raise InputError(f"--cases {cases}: {folder} is not a directory")
-        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in _PHOTO_EXT
+        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES
                        and not p.stem.endswith("_mask"))
         if not files:
             raise InputError(f"--cases {cases}: no photos in {folder}")

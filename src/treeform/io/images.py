@@ -21,7 +21,7 @@ from treeform.io._atomic import atomic_path
 from treeform.structures.photo import Photo
 
 __all__ = ["read_photo", "read_mask", "read_rgba", "write_png", "texture_png", "shared_textures", "MAX_PIXELS",
-           "MIN_SIDE"]
+           "MIN_SIDE", "PHOTO_SUFFIXES", "pil_image"]
 
 MAX_PIXELS = 200_000_000
 """Largest image (width x height) the readers accept; Pillow's own bomb limit is raised to it."""
@@ -29,18 +29,42 @@ MAX_PIXELS = 200_000_000
 MIN_SIDE = 16
 """Smallest accepted image side in pixels."""
 
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".webp", ".tif", ".tiff", ".bmp", ".heic", ".heif", ".avif")
+"""What a folder of photos is searched for (any case): every format the readers open. HEIC / HEIF
+(a phone camera's default format) through pillow-heif, AVIF through Pillow itself."""
+
 _EXIF_ORIENTATION = 0x0112
 _SIXTEEN_BIT = ("I;16", "I;16L", "I;16B", "I;16N")
 _ALPHA_MODES = ("RGBA", "LA", "PA", "RGBa", "La")
 
 
+_HEIF = []  # [True] once pillow-heif's opener is registered, [False] where it is not installed
+
+
 def _pil():
-    """Import Pillow lazily (keeps ``import treeform.io`` light) and set the bomb limit."""
+    """Import Pillow lazily (keeps ``import treeform.io`` light), set the bomb limit and let it open HEIC."""
     from PIL import Image, ImageFile, ImageOps
 
     if Image.MAX_IMAGE_PIXELS is not None and Image.MAX_IMAGE_PIXELS < MAX_PIXELS:
         Image.MAX_IMAGE_PIXELS = MAX_PIXELS
+    if not _HEIF:
+        try:  # HEIC / HEIF: what phones save by default; libheif applies the file's rotation on decode
+            from pillow_heif import register_heif_opener
+
+            register_heif_opener()
+            _HEIF.append(True)
+        except ImportError:
+            _HEIF.append(False)
     return Image, ImageFile, ImageOps
+
+
+def pil_image():
+    """Pillow's ``Image`` module, ready for every format of :data:`PHOTO_SUFFIXES` (HEIC included).
+
+    Code that opens a user's images with Pillow directly gets the module here rather than by
+    ``from PIL import Image``, so a phone's HEIC photo opens wherever a JPEG does.
+    """
+    return _pil()[0]
 
 
 def _too_large(path: Path, w: int | None = None, h: int | None = None) -> InputError:
@@ -71,6 +95,8 @@ def _open_image(path):
     except Image.DecompressionBombError:
         raise _too_large(path) from None
     except Image.UnidentifiedImageError:
+        if path.suffix.lower() in (".heic", ".heif") and not _HEIF[0]:
+            raise InputError(f"{path}: HEIC needs the pillow-heif package (pip install pillow-heif)") from None
         raise InputError(f"{path}: not an image file (unrecognised format)") from None
     except PermissionError:
         raise InputError(f"{path}: cannot read, permission denied") from None

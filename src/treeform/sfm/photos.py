@@ -15,11 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from treeform._shared.errors import InputError
+from treeform.io.images import PHOTO_SUFFIXES
 
 __all__ = ["PhotoView", "load_photos", "exif_focal_px", "PHOTO_SUFFIXES", "MIN_PHOTOS"]
-
-PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
-"""File name endings :func:`load_photos` reads from a folder (case-insensitive)."""
 
 MIN_PHOTOS = 3
 """Fewest photos a multi-view reconstruction accepts."""
@@ -203,8 +201,8 @@ def load_photos(folder_or_paths, *, max_size: int = 1024) -> list[PhotoView]:
     Parameters
     ----------
     folder_or_paths : str, path-like, or sequence of them
-        A folder (every ``.jpg``, ``.jpeg``, ``.png``, ``.tif``, ``.tiff`` in it, any case,
-        hidden files skipped, sorted by name) or a list of image files (kept in the given
+        A folder (every photo of :data:`treeform.io.images.PHOTO_SUFFIXES` in it, any case:
+        JPEG, PNG, WebP, TIFF, BMP, HEIC, AVIF; hidden files skipped, sorted by name) or a list of image files (kept in the given
         order).
     max_size : int, keyword-only
         Longest side of each returned image in pixels (never upscaled).
