@@ -56,6 +56,27 @@ def test_learned_segmentation_at_a_closer_view_finds_the_same_tree(celtis):
     assert (base & close).sum() / (base | close).sum() > 0.8
 
 
+def test_a_wide_panorama_is_seen_at_a_2_to_1_photos_scale(celtis):
+    """Past 2:1 the network sees the photo as tall as a 2:1 photo, not squeezed to its long side:
+    the sample's tree in a 6:1 panorama was 53 px tall to the network, and no tree was found."""
+    import cv2
+
+    from treeform.learn.infer import network_input, network_scale
+
+    H, W = celtis.shape[:2]
+    assert network_scale((H, W), 320) == 320 / H  # up to 2:1 as before: the long side at 320
+    assert network_scale((H, 2 * H), 320) == 160 / H
+    pad = (6 * H - W) // 2
+    pano = cv2.copyMakeBorder(celtis, 0, 0, pad, 6 * H - W - pad, cv2.BORDER_REPLICATE)  # sky, hedge, lawn on
+    x, (h, w), _ = network_input(pano, 320, 8, cv2.BORDER_REFLECT_101)
+    assert (h, w) == (160, 960)
+    mask = segment_tree_learned(pano).tree_mask
+    ref = segment_tree_learned(celtis).tree_mask
+    mid = mask[:, pad:pad + W]
+    assert mask.sum() == mid.sum()  # nothing of the streaked sides taken in
+    assert (mid & ref).sum() / (mid | ref).sum() > 0.65  # 0.74 (the 4:3 photo is seen at twice the scale)
+
+
 @pytest.mark.parametrize("kind", ["street", "park", "field"])
 def test_scenes_without_a_tree_say_so(kind):
     # the training scenes' own backgrounds, drawn with a seed training never uses: roads, buildings,

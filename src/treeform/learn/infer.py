@@ -16,7 +16,7 @@ import numpy as np
 from treeform._shared.errors import InputError, ModelError
 
 __all__ = ["WEIGHTS", "weights_path", "Segmenter", "FeetDetector", "load_session", "main_tree", "focus_map",
-           "predict_species", "predict_rbv"]
+           "network_scale", "predict_species", "predict_rbv"]
 
 WEIGHTS = {"seg": "seg.onnx", "species": "species.onnx", "rbv": "rbv.onnx", "feet": "feet.onnx"}
 """File name of each network's shipped weights."""
@@ -100,7 +100,7 @@ def focus_map(image: np.ndarray, side: int = 320, *, relative: bool = True) -> n
 
     img = np.asarray(image)
     H, W = img.shape[:2]
-    s = min(1.0, side / max(H, W))
+    s = min(1.0, network_scale((H, W), side))
     g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
     if s < 1.0:
         g = cv2.resize(g, (max(8, round(W * s)), max(8, round(H * s))), interpolation=cv2.INTER_AREA)
@@ -174,14 +174,31 @@ def main_tree(tree: np.ndarray, *, min_fraction: float = 0.002, focus: np.ndarra
     return keep[lab]
 
 
+def network_scale(shape, side: int) -> float:
+    """The scale at which an image network sees an (H, W) photo: its long side at ``side`` px,
+    but its short side never under ``side / 2``.
+
+    The networks were trained on square scenes and see a photo of up to 2:1 with its long side at
+    ``side``. A wider panorama scaled that way would shrink the tree with it (at 6:1 the sample's
+    tree is 53 px tall, and no tree is found); past 2:1 the photo is seen as a 2:1 photo of the
+    same height would be, the long side growing instead (the network is convolutional).
+
+    >>> network_scale((600, 450), 320), network_scale((400, 1200), 320)  # 4:3, then a 3:1 panorama
+    (0.5333333333333333, 0.4)
+    """
+    H, W = (int(v) for v in shape[:2])
+    return max(side / max(H, W), 0.5 * side / min(H, W))
+
+
 def network_input(image, side: int, multiple: int, border: int) -> tuple:
-    """An RGB photo as an image network's input: long side ``side``, padded to a multiple.
+    """An RGB photo as an image network's input at :func:`network_scale` (long side ``side`` up to
+    2:1), padded to a multiple.
 
     Parameters
     ----------
     image : ndarray, shape (H, W, 3), uint8
     side : int
-        Long side of the scaled photo in pixels.
+        Long side of the scaled photo in pixels (of a photo of up to 2:1; see :func:`network_scale`).
     multiple : int
         The network's stride: the scaled photo is padded (bottom, right) to a multiple of it.
     border : int
@@ -204,7 +221,7 @@ def network_input(image, side: int, multiple: int, border: int) -> tuple:
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise InputError(f"image: expected an (H, W, 3) uint8 RGB array, got {img.shape} {img.dtype}")
     H, W = img.shape[:2]
-    s = side / max(H, W)
+    s = network_scale((H, W), side)
     h, w = max(multiple, int(round(H * s))), max(multiple, int(round(W * s)))
     small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
     ph, pw = (-h) % multiple, (-w) % multiple

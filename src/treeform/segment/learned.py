@@ -238,10 +238,12 @@ def snap_to_edges(img: np.ndarray, p_tree: np.ndarray, side: int) -> np.ndarray:
     (:func:`guided_filter`, run at most at :data:`REFINE_SIDE`); unchanged when the photo is not finer."""
     import cv2
 
+    from treeform.learn.infer import network_scale
+
     H, W = img.shape[:2]
-    f = min(1.0, REFINE_SIDE / max(H, W))  # the filter runs at most at REFINE_SIDE
+    f = min(1.0, network_scale((H, W), REFINE_SIDE))  # the filter runs at most at REFINE_SIDE (up to 2:1)
     guide = img if f == 1.0 else cv2.resize(img, (round(W * f), round(H * f)), interpolation=cv2.INTER_AREA)
-    scale = max(guide.shape[:2]) / side
+    scale = f / network_scale((H, W), side)  # guide pixels per pixel of the network's view
     if scale <= 1.2:  # only when the photo is finer than the network's view
         return p_tree
     src = p_tree if f == 1.0 else cv2.resize(p_tree, guide.shape[1::-1], interpolation=cv2.INTER_AREA)
