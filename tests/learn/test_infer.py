@@ -102,8 +102,21 @@ def test_photos_without_a_tree_say_so(kind):
         t = np.linspace(0, 1, 300)[:, None, None]
         img = np.broadcast_to((1 - t) * np.array([90, 140, 220]) + t * np.array([200, 220, 240]), (300, 400, 3))
         img = img.astype(np.uint8)
-    with pytest.raises(NoTreeFoundError, match="no tree found"):
+    with pytest.raises(NoTreeFoundError, match="no tree found") as err:
         segment_tree_learned(img)
+    assert "px" not in str(err.value)  # a photo of 400 px has no size to blame
+
+
+def test_a_thumbnail_too_small_for_the_network_says_so(celtis):
+    import io
+
+    small = Image.fromarray(celtis).resize((56, 75))
+    buf = io.BytesIO()
+    small.save(buf, "JPEG", quality=75)
+    with pytest.raises(NoTreeFoundError, match=r"it is 56 x 75 px: .* give a larger photo"):
+        segment_tree_learned(np.asarray(Image.open(buf).convert("RGB")))
+    found = Image.fromarray(celtis).resize((112, 150), Image.Resampling.BOX)  # 150 px: found, no complaint
+    assert segment_tree_learned(np.asarray(found)).tree_mask.mean() > 0.15
 
 
 def test_main_tree_drops_a_separate_neighbour():
