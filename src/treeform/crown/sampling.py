@@ -323,15 +323,18 @@ def billboard_centres(rdm, nodes=None, n: int = 144, *, inner: float = 0.35, box
     return cand[order].astype(np.float32)
 
 
-def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: int = 1):
+def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: int = 1, cover: float = 0.85):
     """The tree cut to the cone of its silhouette: branch ends and cards outside ``mask``'s outline go.
 
-    The outline is ``mask`` closed, grown by ``margin`` pixels and with its holes filled (a
-    card is larger than most gaps of a crown). A node stays while it or a node above it on
-    its branches projects inside, so a limb crossing a gap of the mask is kept whole and a
+    A node stays while it or a node above it on its branches projects inside ``mask`` closed
+    and grown by ``margin`` pixels, so a limb crossing a gap of the mask is kept whole and a
     branch ends where it leaves the silhouette for good; the trunk (order 0) always stays, as
-    a mask may miss part of it. Cards stay when their centre projects inside and their node
-    stays; their ``node`` indices follow the pruned skeleton.
+    a mask may miss part of it. A card stays when its node stays and at least ``cover`` of its
+    square, drawn where it projects (its edge at its own depth), lies on the mask: a card whose
+    centre alone is inside reaches half its edge past the outline, or over a gap between two
+    whorls (on the 14 library cut-outs, whose alpha is exact, keeping cards by their centre on
+    the outline grown by half a card made the learned route's front 17 % larger than the tree at
+    the median, 40 % on a pine). Their ``node`` indices follow the pruned skeleton.
 
     Parameters
     ----------
@@ -341,7 +344,9 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
         The photo's camera; ``mask`` is its image.
     mask : ndarray, shape (H, W), bool
     margin : int
-        Pixels the outline is closed and grown by (about half a card).
+        Pixels the branches' outline is closed and grown by.
+    cover : float
+        Share of a card's square that must lie on ``mask`` for the card to stay.
 
     Returns
     -------
@@ -364,9 +369,9 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     import scipy.ndimage as ndi
 
     margin = max(1, int(margin))
+    mask = np.asarray(mask, bool)
     disk = np.hypot(*np.mgrid[-margin:margin + 1, -margin:margin + 1]) <= margin
-    grown = ndi.binary_fill_holes(ndi.binary_dilation(ndi.binary_closing(np.asarray(mask, bool), disk,
-                                                                         border_value=0), disk))
+    grown = ndi.binary_dilation(ndi.binary_closing(mask, disk, border_value=0), disk)
     inside = visual_hull_contains(camera, grown, skeleton.positions)
     for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
         if inside[i]:
@@ -375,9 +380,49 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     if len(foliage):
         old = foliage.node
         node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
-        kept = ((old < 0) | (node >= 0)) & visual_hull_contains(camera, grown, foliage.positions)
+        kept = ((old < 0) | (node >= 0)) & (card_cover(camera, mask, foliage) >= cover)
         foliage = replace(foliage.subset(kept), node=node[kept])
     return skeleton, foliage
+
+
+def card_cover(camera, mask: np.ndarray, foliage) -> np.ndarray:
+    """(M,) share of each card's square, drawn where the card projects, that lies on ``mask``.
+
+    The square is centred on the card's projected centre, its edge the card's edge at the card's
+    depth (at least a pixel); pixels outside the image count as off the mask; a card behind the
+    camera covers nothing. Summed over an integral image: O(1) a card.
+
+    Examples
+    --------
+    >>> from treeform.structures import Camera, Foliage
+    >>> cam = Camera(100, 100, 90.0, (0, 0, 10.0), (0, 0, 0), (0, 1, 0))   # 5 px per metre at the origin
+    >>> f = Foliage([[0, 0, 0], [2, 0, 0]], [[0, 0, 1]] * 2, [[0, 1, 0]] * 2, [2.0] * 2, [[1, 1, 1]] * 2)
+    >>> m = np.zeros((100, 100), bool); m[:, :60] = True                   # the mask ends at u = 60
+    >>> card_cover(cam, m, f).round(2).tolist()                            # inside; half over the edge
+    [1.0, 0.5]
+    """
+    import cv2
+
+    mask = np.asarray(mask, bool)
+    h, w = mask.shape
+    n = len(foliage)
+    if n == 0:
+        return np.zeros(0)
+    uvz = camera.project(foliage.positions)
+    z = uvz[:, 2]
+    front = z > 1e-9
+    half = 0.5 * np.asarray(foliage.size, np.float64) * camera.focal / np.where(front, z, 1.0)
+    half = np.maximum(half, 0.5)
+    u = np.where(front, uvz[:, 0], -1e9)
+    v = np.where(front, uvz[:, 1], -1e9)
+    lo_u, hi_u = np.floor(u - half + 0.5), np.floor(u + half + 0.5)  # pixels [lo, hi) of the square
+    lo_v, hi_v = np.floor(v - half + 0.5), np.floor(v + half + 0.5)
+    area = np.maximum(hi_u - lo_u, 1.0) * np.maximum(hi_v - lo_v, 1.0)
+    x0, x1 = (np.clip(a, 0, w).astype(np.int64) for a in (lo_u, hi_u))
+    y0, y1 = (np.clip(a, 0, h).astype(np.int64) for a in (lo_v, hi_v))
+    ii = cv2.integral(mask.astype(np.uint8))  # (h + 1, w + 1): sums of mask[:y, :x]
+    on = ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
+    return np.where(front, on / area, 0.0)
 
 
 def fill_silhouette(skeleton, foliage, camera, mask, rbv, *, mpp: float, depth_samples: int = 24, seed=0):

@@ -54,8 +54,8 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
                      layout, mpp: float, rbv=None):
     """The grown tree's leaves and bark made to agree with the photo (``grow_tree``'s ``dress``).
 
-    - Branches and cards whose centre projects outside the tree mask's outline (grown by half a
-      card) go: the real tree lies inside the cone of its silhouette
+    - Branches that project outside the tree mask's outline, and cards whose square does not lie
+      mostly on the mask, go: the real tree lies inside the cone of its silhouette
       (:func:`treeform.crown.sampling.carve_to_silhouette`, ``cfg.carve``; the trunk stays).
     - Where the mask shows leaves (not the trunk below the crown) and no card projects, cards
       are added inside the RBV (:func:`treeform.crown.sampling.fill_silhouette`, ``cfg.fill``; needs
@@ -72,8 +72,7 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
     tree = seg.tree_mask
     leafy = tree & ~trunk_pixels(seg, layout)  # the trunk below the crown carries no leaves
     if cfg.carve:
-        half = max(1, int(round(0.5 * float(np.median(foliage.size)) / mpp))) if len(foliage) else 1
-        skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, tree, margin=half)
+        skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, tree)
     if cfg.fill and len(foliage) and rbv is not None:
         foliage = fill_silhouette(skeleton, foliage, camera, leafy, rbv, mpp=mpp, seed=cfg.seed)
     if seg.wood_mask.sum() > 20:
