@@ -82,7 +82,8 @@ def test_photo_textured_leaves_beat_procedural_cards_on_the_front_view(run):
     # the photo's own crown texture, not one drawn cluster tinted per card: far closer in structure
     assert res.metrics["front_ssim"] > proc["front_ssim"] + 0.2
     assert res.metrics["front_color_distance"] < proc["front_color_distance"]
-    assert proc["leaves"] == res.metrics["leaves"]
+    # the same budget; the photo's crown drops the hidden cards that overhang the outline (2 % here)
+    assert 0.95 * proc["leaves"] <= res.metrics["leaves"] <= proc["leaves"]
 
 
 def test_preview_labels_every_panel_and_shows_the_whole_tree(run):
@@ -116,7 +117,7 @@ def test_the_crown_grows_in_clumps_with_sky_between_them_from_the_side_and_above
     assert gaps["side"][0] > gaps["side"][1] + 0.01 and gaps["top"][0] > gaps["top"][1] + 0.03, gaps
     for key, tol in (("reprojection_error", 0.01), ("front_ssim", -0.03)):
         assert (clumped.metrics[key] - even.metrics[key]) * (1 if tol > 0 else -1) < abs(tol), key
-    assert clumped.metrics["leaves"] == even.metrics["leaves"]
+    assert abs(clumped.metrics["leaves"] - even.metrics["leaves"]) <= 0.03 * even.metrics["leaves"]
 
 
 def test_metrics_report_the_trees_size_as_treeform_metrics_does(run):
@@ -234,6 +235,20 @@ def test_a_cutouts_alpha_is_its_tree_mask():
     truth = cv2.resize(alpha, (w, h), interpolation=cv2.INTER_AREA) >= 128
     assert (res.segmentation.tree_mask != truth).mean() < 0.002  # the alpha, to its resampling
     assert res.metrics["reprojection_error"] < 0.2
+
+
+def test_hidden_cards_do_not_overhang_an_exact_outline():
+    """Cards the camera sees are cut to the outline by their photo tile's alpha; a card behind them
+    that overhangs the mask goes (birch cut-out at these settings: 17.5 % of the tree drawn outside its
+    alpha before, 10.8 % after; error 20.6 -> 14.6 %)."""
+    from treeform.report import photo_window
+
+    res = reconstruct(ROOT / "src" / "treeform" / "data" / "library" / "birch_0.png", seed=0, **FAST)
+    front = res.renders["front"]
+    drawn = front.mask[photo_window(front.camera, res.camera)]
+    tree = res.segmentation.tree_mask
+    assert (drawn & ~tree).sum() < 0.14 * tree.sum()
+    assert (tree & ~drawn).sum() < 0.06 * tree.sum()  # and the crown is not thinned to get there
 
 
 def test_conical_crown_and_lod(tmp_path):

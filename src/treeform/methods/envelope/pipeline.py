@@ -341,6 +341,13 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                 from treeform.crown.photo_leaves import face_camera
 
                 foliage = face_camera(foliage, cam, visible, rng)
+                # the alpha of its photo tile cuts a card the camera sees to the outline; a card behind
+                # them shows a tile of the crown wherever it stands, so one overhanging the mask goes
+                from treeform.crown.sampling import CARD_COVER, card_cover
+
+                keep = visible | (card_cover(cam, leaf_mask, foliage) >= CARD_COVER)
+                foliage, visible, shade = foliage.subset(keep), visible[keep], shade[keep]
+                skeleton.meta["n_leaves"] = len(foliage)
     with timer.stage("mesh"):
         from treeform.geometry import LOD_PRESETS, tree_mesh, tree_textures
         from treeform.geometry.textures import bark_normals, tint_texture
