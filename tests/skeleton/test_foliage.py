@@ -187,3 +187,19 @@ def test_domain_imports_stay_inside_the_rules():
             for name in names:
                 if name.startswith("treeform."):
                     assert name.split(".")[1] in {"skeleton", "structures", "_shared"}, (path.name, name)
+
+
+def test_a_crown_in_pieces_up_its_stem_is_one_tree():
+    """Three tufts up a stem (a birch cut out of its photo): with the trunk given, the skeleton reaches all of
+    them; the largest tuft alone was skeletonised before, and the abs route left the others bare."""
+    yy, xx = np.mgrid[:400, :200]
+    mask = np.zeros((400, 200), bool)
+    for cy, r in ((320, 60), (200, 45), (100, 35)):  # tufts one above the other, gaps of sky between
+        mask |= (yy - cy) ** 2 + (xx - 100) ** 2 < r ** 2
+    trunk = np.array([[100.0, 399.0], [100.0, 320.0]])
+    sk = foliage_skeleton(mask, n_branches=4, trunk=trunk, seed=0)
+    tops = [float(b[:, 1].min()) for b in sk.branches]
+    assert min(tops) < 80  # the top tuft has branches
+    assert sk.partition[100, 100] >= 0 and sk.partition[200, 100] >= 0
+    alone = foliage_skeleton(mask, n_branches=4, seed=0)  # no trunk to join them along: the largest tuft
+    assert min(float(b[:, 1].min()) for b in alone.branches) > 240

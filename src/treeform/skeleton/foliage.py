@@ -89,6 +89,15 @@ class Skeleton2D:
         }
 
 
+JOIN_SHARE = 0.9
+"""Tree mode with a given trunk: when the crown's largest part holds less than this share of it, the parts are
+joined along the trunk line first. On the 14 library cut-outs (exact alpha) the abs route on a birch went 47 -> 32 %
+error, another birch 49 -> 39 %, a willow 37 -> 30 %, and the crowns in one piece (every isolated photo) do not change."""
+
+JOIN_WIDTH = 0.02
+"""Width of that joining line, as a share of the working width."""
+
+
 # ----------------------------------------------------------------------------- public
 
 def foliage_skeleton(mask, *, n_branches: int = 5, mode: str = "tree", tau: float = 0.15, trunk=None,
@@ -100,7 +109,9 @@ def foliage_skeleton(mask, *, n_branches: int = 5, mode: str = "tree", tau: floa
     ----------
     mask : array_like, shape (H, W), bool
         Tree / foliage silhouette (non-zero = inside). Its largest 8-connected part, holes
-        filled, is skeletonised; every mask pixel still gets a partition label.
+        filled, is skeletonised; every mask pixel still gets a partition label. In tree mode
+        with a ``trunk``, a crown in pieces (its largest under :data:`JOIN_SHARE` of it) is
+        first joined along the trunk line, so tufts up a stem belong to the tree.
     n_branches : int
         Number n of first-order branches, i.e. of areas, made by n - 1 cuts (1..64).
     mode : {"tree", "vine"}
@@ -188,7 +199,20 @@ def foliage_skeleton(mask, *, n_branches: int = 5, mode: str = "tree", tau: floa
     mw = m if (h, w) == (H, W) else cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) >= 0.5
     # a light Gaussian smoothing (sigma 1 working pixel) of the silhouette removes the 1-2 pixel
     # ragged bumps where the field has spurious zeros
-    shape = main_component(cv2.GaussianBlur(mw.astype(np.float32), (0, 0), 1.0) >= 0.5)
+    smooth = cv2.GaussianBlur(mw.astype(np.float32), (0, 0), 1.0) >= 0.5
+    if mode == "tree" and trunk is not None and smooth.any() \
+            and main_component(smooth).sum() < JOIN_SHARE * ndi.binary_fill_holes(smooth).sum():
+        # a crown in pieces along its stem (a birch's tufts, a willow's curtains) is one tree: the
+        # trunk line, prolonged to the top, joins them before the largest part is taken
+        line = (np.asarray(trunk, float) + 0.5) * np.array([w / W, h / H]) - 0.5
+        top = float(np.flatnonzero(smooth.any(1))[0])
+        if line[-1, 1] > top:
+            line = np.vstack([line, [line[-1, 0], top]])
+        bridge = np.zeros((h, w), np.uint8)
+        cv2.polylines(bridge, [np.round(line).astype(np.int32).reshape(-1, 1, 2)], False, 1,
+                      thickness=max(1, int(round(JOIN_WIDTH * w))))
+        smooth |= bridge > 0
+    shape = main_component(smooth)
     if shape.sum() < 30:
         raise NoTreeFoundError(f"mask: too small at the working size ({int(shape.sum())} pixels of {h}x{w})")
 
