@@ -10,10 +10,12 @@ import typer
 from treeform.cli.app import app, run_api, seed_option, SEGMENTER_OPTION, SegmenterName
 
 
+PHOTO_HELP = "Photo of a tree (JPEG, PNG, HEIC, ...), or a cut-out (RGBA PNG / WebP): its alpha is the tree."
+
+
 @app.command("segment")
 def segment_cmd(
-    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...), or a cut-out "
-                                                        "(RGBA PNG / WebP): its alpha is the tree."),
+    photo: Path = typer.Argument(..., metavar="PHOTO", help=PHOTO_HELP),
     out: Optional[Path] = typer.Option(None, "--out", "-o", help="labels.png: 8-bit, 0 background, 1 foliage, 2 wood."),
     overlay: Optional[Path] = typer.Option(None, "--overlay", help="Also write the photo with the labels tinted (PNG)."),
     mask: Optional[Path] = typer.Option(None, "--mask", help="Also write the tree as a white-on-black mask "
@@ -39,8 +41,7 @@ def segment_cmd(
 
 @app.command("species")
 def species_cmd(
-    photo: Path = typer.Argument(..., metavar="PHOTO", help="Photo of a tree (JPEG, PNG, ...), or a cut-out "
-                                                        "(RGBA PNG / WebP): its alpha is the tree."),
+    photo: Path = typer.Argument(..., metavar="PHOTO", help=PHOTO_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print all probabilities as JSON."),
     segmenter: SegmenterName = typer.Option(SegmenterName.learned, "--segmenter",
                                             help="Segmentation the species network reads (it was trained on "

@@ -27,7 +27,6 @@ BACKGROUND_KINDS = ("park", "field", "street", "city", "forest", "sky")
 """The scene types :func:`procedural_background` paints."""
 
 
-
 def _hsv(h: float, s: float, v: float) -> np.ndarray:
     return np.array(colorsys.hsv_to_rgb(h % 1.0, float(np.clip(s, 0, 1)), float(np.clip(v, 0, 1))))
 

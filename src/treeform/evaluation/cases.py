@@ -28,7 +28,6 @@ from treeform.io.images import PHOTO_SUFFIXES
 
 __all__ = ["CAPTURE_SIZE", "CAPTURE_VIEWS", "Case", "capture_case", "case_names", "load_case"]
 
-
 CAPTURE_VIEWS = 24
 """Photos of a ``captures:N`` case (the multi-view method's acceptance capture has 24)."""
 CAPTURE_SIZE = 480

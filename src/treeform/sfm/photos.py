@@ -202,8 +202,8 @@ def load_photos(folder_or_paths, *, max_size: int = 1024) -> list[PhotoView]:
     ----------
     folder_or_paths : str, path-like, or sequence of them
         A folder (every photo of :data:`treeform.io.images.PHOTO_SUFFIXES` in it, any case:
-        JPEG, PNG, WebP, TIFF, BMP, HEIC, AVIF; hidden files skipped, sorted by name) or a list of image files (kept in the given
-        order).
+        JPEG, PNG, WebP, TIFF, BMP, HEIC, AVIF; hidden files skipped, sorted by name) or a list
+        of image files (kept in the given order).
     max_size : int, keyword-only
         Longest side of each returned image in pixels (never upscaled).
 

@@ -200,24 +200,24 @@ def foliage_skeleton(mask, *, n_branches: int = 5, mode: str = "tree", tau: floa
     # a light Gaussian smoothing (sigma 1 working pixel) of the silhouette removes the 1-2 pixel
     # ragged bumps where the field has spurious zeros
     smooth = cv2.GaussianBlur(mw.astype(np.float32), (0, 0), 1.0) >= 0.5
-    if mode == "tree" and trunk is not None and smooth.any() \
-            and main_component(smooth).sum() < JOIN_SHARE * ndi.binary_fill_holes(smooth).sum():
+    shape = main_component(smooth)
+
+    def to_work(p):
+        return (np.asarray(p, float) + 0.5) * scale - 0.5
+
+    if mode == "tree" and trunk is not None and shape.sum() < JOIN_SHARE * ndi.binary_fill_holes(smooth).sum():
         # a crown in pieces along its stem (a birch's tufts, a willow's curtains) is one tree: the
         # trunk line, prolonged to the top, joins them before the largest part is taken
-        line = (np.asarray(trunk, float) + 0.5) * np.array([w / W, h / H]) - 0.5
+        line = to_work(trunk)
         top = float(np.flatnonzero(smooth.any(1))[0])
         if line[-1, 1] > top:
             line = np.vstack([line, [line[-1, 0], top]])
         bridge = np.zeros((h, w), np.uint8)
         cv2.polylines(bridge, [np.round(line).astype(np.int32).reshape(-1, 1, 2)], False, 1,
                       thickness=max(1, int(round(JOIN_WIDTH * w))))
-        smooth |= bridge > 0
-    shape = main_component(smooth)
+        shape = main_component(smooth | (bridge > 0))
     if shape.sum() < 30:
         raise NoTreeFoundError(f"mask: too small at the working size ({int(shape.sum())} pixels of {h}x{w})")
-
-    def to_work(p):
-        return (np.asarray(p, float) + 0.5) * scale - 0.5
 
     def to_full(p):
         return (np.asarray(p, float) + 0.5) / scale - 0.5
