@@ -392,12 +392,15 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     return skeleton, foliage
 
 
-def card_cover(camera, mask: np.ndarray, foliage) -> np.ndarray:
+def card_cover(camera, mask: np.ndarray, foliage, offset: tuple = (0, 0)) -> np.ndarray:
     """(M,) share of each card's square, drawn where the card projects, that lies on ``mask``.
 
     The square is centred on the card's projected centre, its edge the card's edge at the card's
-    depth (at least a pixel); pixels outside the image count as off the mask; a card behind the
-    camera covers nothing. Summed over an integral image: O(1) a card.
+    depth (at least a pixel); pixels outside ``mask`` count as off it; a card behind the
+    camera covers nothing. Summed over an integral image: O(1) a card. ``mask`` is the camera's
+    image, or with ``offset`` = ``(top, left)`` a larger canvas around it (the camera's pixel
+    (u, v) is ``mask[v + top, u + left]``, as in :func:`visual_hull_contains`: a crown continued
+    past the frame by :func:`treeform.crown.frame.beyond_frame` keeps its cards there).
 
     Examples
     --------
@@ -406,6 +409,9 @@ def card_cover(camera, mask: np.ndarray, foliage) -> np.ndarray:
     >>> f = Foliage([[0, 0, 0], [2, 0, 0]], [[0, 0, 1]] * 2, [[0, 1, 0]] * 2, [2.0] * 2, [[1, 1, 1]] * 2)
     >>> m = np.zeros((100, 100), bool); m[:, :60] = True                   # the mask ends at u = 60
     >>> card_cover(cam, m, f).round(2).tolist()                            # inside; half over the edge
+    [1.0, 0.5]
+    >>> wide = np.zeros((100, 120), bool); wide[:, :80] = True             # the same, 20 px more canvas left
+    >>> card_cover(cam, wide, f, offset=(0, 20)).round(2).tolist()
     [1.0, 0.5]
     """
     import cv2
@@ -420,8 +426,8 @@ def card_cover(camera, mask: np.ndarray, foliage) -> np.ndarray:
     front = z > 1e-9
     half = 0.5 * np.asarray(foliage.size, np.float64) * camera.focal / np.where(front, z, 1.0)
     half = np.maximum(half, 0.5)
-    u = np.where(front, uvz[:, 0], -1e9)
-    v = np.where(front, uvz[:, 1], -1e9)
+    u = np.where(front, uvz[:, 0] + int(offset[1]), -1e9)
+    v = np.where(front, uvz[:, 1] + int(offset[0]), -1e9)
     lo_u, hi_u = np.floor(u - half + 0.5), np.floor(u + half + 0.5)  # pixels [lo, hi) of the square
     lo_v, hi_v = np.floor(v - half + 0.5), np.floor(v + half + 0.5)
     area = np.maximum(hi_u - lo_u, 1.0) * np.maximum(hi_v - lo_v, 1.0)

@@ -343,9 +343,10 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                 foliage = face_camera(foliage, cam, visible, rng)
                 # the alpha of its photo tile cuts a card the camera sees to the outline; a card behind
                 # them shows a tile of the crown wherever it stands, so one overhanging the mask goes
+                # (past the frame, the continued crown is the mask: the photo does not show it cut there)
                 from treeform.crown.sampling import CARD_COVER, card_cover
 
-                keep = visible | (card_cover(cam, leaf_mask, foliage) >= CARD_COVER)
+                keep = visible | (card_cover(cam, on_canvas(leaf_mask), foliage, offset=(ptop, pleft)) >= CARD_COVER)
                 foliage, visible, shade = foliage.subset(keep), visible[keep], shade[keep]
                 skeleton.meta["n_leaves"] = len(foliage)
     with timer.stage("mesh"):
