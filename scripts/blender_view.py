@@ -158,6 +158,9 @@ def _render(scene, lo, hi, args) -> dict:
     scene.cycles.samples = args.samples
     scene.cycles.use_denoising = True
     scene.render.film_transparent = True
+    # the textures' own colours: Blender's default view transform (AgX) tone-maps them darker and greyer
+    # (the Catalpa's front: photo crown mean RGB 0.32 / 0.47 / 0.23, AgX 0.31 / 0.39 / 0.24, Standard 0.31 / 0.43 / 0.26)
+    scene.view_settings.view_transform = "Standard"
     h = args.size
     scene.render.resolution_y = h
     scene.render.resolution_x = int(round(h * 0.8))
