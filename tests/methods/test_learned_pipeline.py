@@ -139,3 +139,25 @@ def test_a_cutout_pine_is_not_inflated_past_its_outline(gl):
     lib = ROOT / "src" / "treeform" / "data" / "library" / "pine_0.png"
     res = reconstruct(lib, seed=0, **FAST)
     assert res.species == "pine" and res.metrics["reprojection_error"] < 0.3
+
+
+def test_a_crown_the_frame_cuts_is_continued_past_it(tmp_path, gl):
+    """The sample with its top 30 % cropped away: the tree goes on above the photo, leaves and all (it was cut
+    flat at the frame: no card above it), and the photo's view of it stays as close."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(SAMPLE).convert("RGB"))
+    Image.fromarray(img[int(0.3 * img.shape[0]):]).save(tmp_path / "cut.jpg")
+
+    def above(res):  # share of the cards and of the skeleton's nodes above the photo's top edge
+        return tuple(float((res.camera.project(p)[:, 1] < 0).mean()) for p in (res.foliage.positions,
+                                                                            res.skeleton.positions))
+
+    cont = reconstruct(tmp_path / "cut.jpg", seed=0, **FAST)
+    flat = reconstruct(tmp_path / "cut.jpg", seed=0, beyond_frame=False, **FAST)
+    (cards, nodes), (cards_f, nodes_f) = above(cont), above(flat)
+    assert cards > 0.05 and cards > 0.5 * nodes  # measured 14.5 % and 14.7 %
+    assert cards_f == 0.0 and nodes_f == 0.0
+    assert cont.metrics["reprojection_error"] < flat.metrics["reprojection_error"] + 0.02  # 7.0 against 6.1 %
+    with pytest.raises(InputError, match="beyond_frame"):
+        reconstruct(tmp_path / "cut.jpg", beyond_frame="yes", **FAST)

@@ -330,7 +330,7 @@ median error 0.5: 13.7 %, 0.7: 11.7 %, 0.85: 10.8 %, 0.95: 10.7 % but a sparse b
 
 
 def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: int = 1,
-                        cover: float = CARD_COVER):
+                        cover: float = CARD_COVER, offset: tuple = (0, 0)):
     """The tree cut to the cone of its silhouette: branch ends and cards outside ``mask``'s outline go.
 
     A node stays while it or a node above it on its branches projects inside ``mask`` closed
@@ -350,10 +350,14 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     camera : Camera
         The photo's camera; ``mask`` is its image.
     mask : ndarray, shape (H, W), bool
+        The camera's image, or with ``offset`` a larger canvas around it.
     margin : int
         Pixels the branches' outline is closed and grown by.
     cover : float
         Share of a card's square that must lie on ``mask`` for the card to stay.
+    offset : (int, int)
+        ``(top, left)``: the camera's pixel (u, v) is ``mask[v + top, u + left]`` (a crown continued
+        past the frame, :func:`treeform.crown.frame.beyond_frame`).
 
     Returns
     -------
@@ -379,7 +383,7 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     mask = np.asarray(mask, bool)
     disk = np.hypot(*np.mgrid[-margin:margin + 1, -margin:margin + 1]) <= margin
     grown = ndi.binary_dilation(ndi.binary_closing(mask, disk, border_value=0), disk)
-    inside = visual_hull_contains(camera, grown, skeleton.positions)
+    inside = visual_hull_contains(camera, grown, skeleton.positions, offset=offset)
     for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
         if inside[i]:
             inside[skeleton.parent[i]] = True
@@ -387,7 +391,7 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     if len(foliage):
         old = foliage.node
         node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
-        kept = ((old < 0) | (node >= 0)) & (card_cover(camera, mask, foliage) >= cover)
+        kept = ((old < 0) | (node >= 0)) & (card_cover(camera, mask, foliage, offset=offset) >= cover)
         foliage = replace(foliage.subset(kept), node=node[kept])
     return skeleton, foliage
 

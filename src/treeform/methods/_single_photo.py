@@ -3,6 +3,8 @@
 - :func:`load_photo` — a path / array / Photo reduced to a working size, and an optional user mask;
 - :func:`segment_or_mask` — the automatic segmentation, or the user's mask labelled;
 - :func:`photo_camera` — the camera that took the photo, in a world where the trunk base is the origin;
+- :func:`continued_crown`, :func:`on_canvas` — a crown the frame cuts, continued past it, and the
+  photo's masks on the larger canvas that holds it;
 - :func:`render_previews` — front, side and top renders framed on the tree (also ``treeform grow``'s);
 - :func:`photo_metrics` — how the renders agree with the photo (silhouette, depth, colour, structure).
 """
@@ -16,8 +18,8 @@ import numpy as np
 from treeform._shared.errors import InputError
 from treeform.structures import Camera, Photo
 
-__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "render_previews",
-           "photo_metrics"]
+__all__ = ["as_photo", "fit_photo", "load_photo", "segment_or_mask", "photo_camera", "continued_crown", "on_canvas",
+           "render_previews", "photo_metrics"]
 
 
 def as_photo(photo, max_size: int) -> Photo:
@@ -67,6 +69,51 @@ def photo_camera(width: int, height: int, layout, tree_height: float, fov_y: flo
     cam = Camera(width, height, fov_y, (cx, cy, dist), (cx, cy, 0.0), (0.0, 1.0, 0.0),
                  near=max(dist - 4 * tree_height, dist * 0.05), far=dist + 4 * tree_height)
     return cam, m
+
+
+def continued_crown(layout, *, enabled: bool = True) -> tuple[np.ndarray, tuple[int, int], object]:
+    """A crown the photo's frame cuts, continued past it (:func:`treeform.crown.frame.beyond_frame`).
+
+    Parameters
+    ----------
+    layout : TreeLayout
+        The photo's tree layout (:func:`treeform.crown.layout.tree_layout`).
+    enabled : bool
+        False: the crown as the photo shows it (no canvas around the frame).
+
+    Returns
+    -------
+    crown : ndarray, shape (H + top, W + left + right), bool
+        The crown's silhouette on a canvas around the photo, continued past the edges it cuts.
+    offset : (int, int)
+        ``(top, left)``: the photo's pixel (u, v) is ``crown[v + top, u + left]``.
+    layout : TreeLayout
+        ``layout`` with its ``top_row`` at the continued crown's top (above the photo: negative),
+        so that :func:`photo_camera` gives the whole tree its height.
+    """
+    import dataclasses
+
+    from treeform.crown.frame import beyond_frame
+
+    if not enabled:
+        return layout.crown_mask, (0, 0), layout
+    crown, (top, left) = beyond_frame(layout.crown_mask)
+    top_row = min(layout.top_row, int(np.flatnonzero(crown.any(1))[0]) - top) if crown.any() else layout.top_row
+    return crown, (top, left), dataclasses.replace(layout, top_row=top_row)
+
+
+def on_canvas(frame: np.ndarray, crown: np.ndarray, offset: tuple[int, int], fill=True) -> np.ndarray:
+    """``frame`` (the photo's mask or labels) placed on ``crown``'s canvas, the continued crown around it as ``fill``.
+
+    >>> crown = np.zeros((4, 5), bool); crown[0, 1:4] = True            # the crown continued one row up
+    >>> on_canvas(np.ones((3, 5), np.uint8) * 2, crown, (1, 0), fill=1)[:, 2].tolist()
+    [1, 2, 2, 2]
+    """
+    frame = np.asarray(frame)
+    out = np.where(crown, fill, 0).astype(frame.dtype)
+    top, left = offset
+    out[top:top + frame.shape[0], left:left + frame.shape[1]] = frame
+    return out
 
 
 def load_photo(photo, mask=None, *, max_size: int) -> tuple[Photo, np.ndarray | None]:

@@ -7,7 +7,6 @@ writes the outputs atomically.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from contextlib import nullcontext
 from dataclasses import dataclass, field
@@ -177,21 +176,16 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         layout = tree_layout(seg)
         height, width = ph.shape
         # a crown the frame cuts goes on past it (rounded): the tree's height counts its continued top
-        from treeform.crown.frame import beyond_frame
+        from treeform.methods._single_photo import continued_crown, on_canvas
 
-        crown_full, (ptop, pleft) = beyond_frame(layout.crown_mask) if cfg.beyond_frame else \
-            (layout.crown_mask, (0, 0))
-        top_row = min(layout.top_row, int(np.flatnonzero(crown_full.any(1))[0]) - ptop)
-        cam, mpp = photo_camera(width, height, dataclasses.replace(layout, top_row=top_row), cfg.tree_height,
-                                cfg.fov_y)
+        crown_full, (ptop, pleft), whole = continued_crown(layout, enabled=cfg.beyond_frame)
+        cam, mpp = photo_camera(width, height, whole, cfg.tree_height, cfg.fov_y)
 
         form = cfg.form if cfg.form != "auto" else tree_form(seg.tree_mask)
 
-        def on_canvas(frame_mask):
+        def canvas(frame_mask):
             """A mask of the photo on the continued crown's canvas, the continued crown around it."""
-            out = crown_full.copy()
-            out[ptop:, pleft:pleft + width] = frame_mask
-            return out
+            return on_canvas(frame_mask, crown_full, (ptop, pleft))
     with timer.stage("envelope"):
         from treeform.crown.envelope import inflate_envelope
 
@@ -223,7 +217,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
         r_mean = rdm.mean_radius()
     from treeform.crown.sampling import visual_hull_contains
 
-    hull_mask = on_canvas(ndi.binary_dilation(seg.tree_mask, iterations=1))  # and the crown past the frame
+    hull_mask = canvas(ndi.binary_dilation(seg.tree_mask, iterations=1))  # and the crown past the frame
 
     def inside(p):
         ok = rdm.contains(p)
@@ -309,7 +303,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                                    cfg.leaves - n_shell, weight=weight, seed=rng)
         # the shell's leaves also dress the crown past the frame (the photo shows none of them: the
         # leaves it sees keep their number, within the same triangle budget)
-        hull_core = on_canvas(core)
+        hull_core = canvas(core)
         def in_hull(p):
             return visual_hull_contains(cam, hull_core, p, offset=(ptop, pleft))
         shell_pts = sample_rdm_shell(rdm, n_shell, keep=in_hull if leaf_density is None else
@@ -346,7 +340,7 @@ def reconstruct(photo, *, mask=None, out=None, config: EnvelopeConfig | None = N
                 # (past the frame, the continued crown is the mask: the photo does not show it cut there)
                 from treeform.crown.sampling import CARD_COVER, card_cover
 
-                keep = visible | (card_cover(cam, on_canvas(leaf_mask), foliage, offset=(ptop, pleft)) >= CARD_COVER)
+                keep = visible | (card_cover(cam, canvas(leaf_mask), foliage, offset=(ptop, pleft)) >= CARD_COVER)
                 foliage, visible, shade = foliage.subset(keep), visible[keep], shade[keep]
                 skeleton.meta["n_leaves"] = len(foliage)
     with timer.stage("mesh"):

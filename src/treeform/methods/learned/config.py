@@ -125,8 +125,15 @@ class LearnedConfig:
     rbv_level: int = 4
     """Level of the predicted RBV the crown grows in (4 = 8 layers x 8 sectors)."""
     carve: bool = True
-    """Drop the leaf cards whose centre projects outside the tree mask (grown by half a card):
-    the tree lies inside the cone of its silhouette."""
+    """Drop the branches that project outside the tree mask and the leaf cards whose square lies
+    mostly off it (:func:`treeform.crown.sampling.carve_to_silhouette`): the tree lies inside the
+    cone of its silhouette."""
+    beyond_frame: bool = True
+    """Continue a crown the photo's top or side edges cut past them, rounded
+    (:func:`treeform.crown.frame.beyond_frame`): the tree's height counts its continued top, the
+    predicted RBV (a whole tree's) is fitted to the part of the silhouette the photo shows (as
+    ``fit_silhouette``) and the carving keeps what grows past the frame, instead of cutting the model
+    flat at it."""
     fill: bool = True
     """Add leaf cards where the tree mask shows foliage and no grown card projects, inside the RBV
     along each pixel's ray (:func:`treeform.methods.learned.pipeline.fill_silhouette`)."""
@@ -162,7 +169,7 @@ class LearnedConfig:
         check_choice(self.segmenter, "segmenter", ("learned", "classical"))
         if self.tree_height is not None:
             check_height(self.tree_height)
-        for name in ("fit_silhouette", "carve", "fill"):
+        for name in ("fit_silhouette", "carve", "fill", "beyond_frame"):
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
