@@ -59,6 +59,11 @@ class SynthesisConfig:
     """Fit the leaves to the photo's silhouette: drop those projecting outside it, shrink the
     cards that would overhang it (the image constrains the generative model; without it only
     the search does)."""
+    beyond_frame: bool = True
+    """Continue a crown the photo's top or side edges cut past them, rounded
+    (:func:`treeform.crown.frame.beyond_frame`): the 2D skeleton is drawn on the continued crown, the
+    tree's height counts its continued top and the leaves may grow past the frame (the search still
+    scores the photo's own view), instead of cutting the model flat at the frame."""
     leaves: int | None = None
     """Cap on the number of leaf cards of the final model; None: what the preset grows."""
     lod: str = "medium"
@@ -91,6 +96,8 @@ class SynthesisConfig:
 
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
+        if not isinstance(self.beyond_frame, bool):
+            raise InputError(f"beyond_frame: expected true or false, got {self.beyond_frame!r}")
         if self.texture_size is not None:
             check_int(self.texture_size, "texture_size", 16, 8192)
         return self

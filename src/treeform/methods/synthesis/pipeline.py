@@ -52,7 +52,9 @@ class SynthesisReconstruction:
     """Everything :func:`reconstruct` made; ``files`` maps output names to paths (if written).
 
     ``candidates`` lists each tested model's proposal, error and eq. (4) score in test order;
-    ``skeleton2d`` is the chosen model's 2D skeleton (pixels of the reduced photo).
+    ``skeleton2d`` is the chosen model's 2D skeleton, in pixels of the reduced photo or, where the
+    photo's frame cuts the crown, of the canvas around it that holds the continued crown (the photo
+    at ``metrics["canvas_offset"]`` = ``[top, left]`` on it).
     """
 
     photo: object
@@ -123,12 +125,16 @@ def row_half_widths(mask: np.ndarray) -> np.ndarray:
     return ndi.maximum_filter1d(hw, 2 * win + 1)
 
 
-def _fits(points: np.ndarray, camera, edge_distance: np.ndarray, base, mpp: float, depth_bound) -> np.ndarray:
+def _fits(points: np.ndarray, camera, edge_distance: np.ndarray, base, mpp: float, depth_bound,
+          offset: tuple = (0, 0)) -> np.ndarray:
     """(P,) pixels between each point's projection and the silhouette's outside (0: outside the
-    photo's silhouette or, with ``depth_bound``, outside the crown revolved about its rows' centres, §3.5)."""
+    photo's silhouette or, with ``depth_bound``, outside the crown revolved about its rows' centres, §3.5).
+    ``edge_distance``, ``depth_bound`` and ``base`` may lie on a canvas around the photo (``offset``
+    = ``(top, left)`` of the photo on it)."""
     uvz = camera.project(points)
     h, w = edge_distance.shape
-    u, v = np.floor(uvz[:, 0]).astype(np.int64), np.floor(uvz[:, 1]).astype(np.int64)
+    u = np.floor(uvz[:, 0]).astype(np.int64) + int(offset[1])
+    v = np.floor(uvz[:, 1]).astype(np.int64) + int(offset[0])
     ok = (u >= 0) & (u < w) & (v >= 0) & (v < h) & (uvz[:, 2] > 0)
     d = np.zeros(len(points))
     d[ok] = edge_distance[v[ok], u[ok]]
@@ -140,7 +146,8 @@ def _fits(points: np.ndarray, camera, edge_distance: np.ndarray, base, mpp: floa
 
 def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, edge_distance: np.ndarray | None,
                     leaf_size: float, leaves: int | None = None, reach: list | None = None,
-                    depth_bound: np.ndarray | None = None, trunk_radius: float | None = None):
+                    depth_bound: np.ndarray | None = None, trunk_radius: float | None = None,
+                    offset: tuple = (0, 0)):
     """One model of the generative model (§4) from a 2D skeleton and a proposal.
 
     Parameters
@@ -165,6 +172,10 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
         Per photo row, how deep (pixels) leaves may lie (:func:`row_half_widths`).
     trunk_radius : float, optional
         The photo's trunk radius in metres (:func:`~treeform.growth.lsystem.dress_skeleton`).
+    offset : (int, int)
+        ``(top, left)``: ``sk2d``, ``base``, ``edge_distance`` and ``depth_bound`` lie on a canvas
+        around the photo, whose pixel (u, v) is the canvas's (u + left, v + top) (a crown continued
+        past the frame, :func:`~treeform.methods._single_photo.continued_crown`).
 
     Returns
     -------
@@ -187,7 +198,7 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
     ground = float(skeleton.positions[0, 1])
     inside = skeleton.positions[:, 1] >= ground
     if edge_distance is not None:
-        inside &= _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound) > 0
+        inside &= _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound, offset) > 0
     if not inside.all():
         skeleton, new = skeleton.prune(grown.given | inside)
         if len(foliage):
@@ -196,7 +207,7 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
     if len(foliage) and (foliage.positions[:, 1] < ground).any():
         foliage = foliage.subset(np.flatnonzero(foliage.positions[:, 1] >= ground))
     if edge_distance is not None and len(foliage):
-        d = _fits(foliage.positions, camera, edge_distance, base, mpp, depth_bound)
+        d = _fits(foliage.positions, camera, edge_distance, base, mpp, depth_bound, offset)
         keep = d > 0
         half = 0.5 * foliage.size / mpp
         scale = np.clip(EDGE_FIT * d / half, MIN_EDGE_SCALE, 1.0)
@@ -237,7 +248,8 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
     ------
     InputError, NoTreeFoundError, ModelError, OutputError
     """
-    from treeform.methods._single_photo import load_and_segment, model_metrics, photo_camera, render_previews
+    from treeform.methods._single_photo import (continued_crown, load_and_segment, model_metrics, on_canvas,
+                                                photo_camera, render_previews)
 
     cfg = SynthesisConfig.from_dict({**(config.to_dict() if config else {}), **options})
     out_dir = check_out_dir(out) if out is not None else None
@@ -255,7 +267,15 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
 
             probs = predict_species(seg.labels)
             species = next(iter(probs))
-    cam, mpp = photo_camera(width_px, height_px, layout, cfg.tree_height, cfg.fov_y)
+    # a crown the frame cuts goes on past it (rounded): the 2D analysis and the fitting work on a canvas
+    # around the photo that holds the continued crown, the tree's height counts its continued top, and
+    # the search scores the photo's own view
+    crown_c, offset, whole = continued_crown(layout, enabled=cfg.beyond_frame)
+    top, left = offset
+    tree_c = on_canvas(tree_mask, crown_c, offset)
+    wood_c = on_canvas(seg.wood_mask, np.zeros_like(crown_c), offset)
+    base_c = (layout.base[0] + left, layout.base[1] + top)
+    cam, mpp = photo_camera(width_px, height_px, whole, cfg.tree_height, cfg.fov_y)
     from treeform.methods.synthesis.search import SilhouetteScorer, best_so_far, choose, prior, propose, score
 
     from treeform.skeleton import wood_visible
@@ -266,20 +286,20 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
     with timer.stage("skeleton"):
         from treeform.skeleton import foliage_skeleton, wood_skeleton
 
-        trunk = np.asarray(layout.trunk_path, np.float64)
+        trunk = np.asarray(layout.trunk_path, np.float64) + np.array([left, top], np.float64)
         tol = SPECIES_PRIORS[species][2]
 
         def skeleton_for(p):
             key = ("wood",) if p.skeleton == "wood" else (p.n_branches, p.cut_seed)
             if key not in sk_cache:
                 if p.skeleton == "wood":  # the whole tree: crown parts apart from the main one too
-                    sk = wood_skeleton(tree_mask, seg.wood_mask, trunk=trunk, levels=cfg.levels)
-                    sk_cache[key] = (sk, foliage_reach(sk, tree_mask))
+                    sk = wood_skeleton(tree_c, wood_c, trunk=trunk, levels=cfg.levels)
+                    sk_cache[key] = (sk, foliage_reach(sk, tree_c))
                 else:
-                    sk = foliage_skeleton(layout.crown_mask, n_branches=p.n_branches, mode="tree",
+                    sk = foliage_skeleton(crown_c, n_branches=p.n_branches, mode="tree",
                                           trunk=trunk, levels=cfg.levels, angle_tolerance=tol,
                                           seed=cfg.seed * 1009 + p.cut_seed)
-                    sk_cache[key] = (sk, foliage_reach(sk, layout.crown_mask))
+                    sk_cache[key] = (sk, foliage_reach(sk, crown_c))
             return sk_cache[key]
 
         skeleton_for(proposals[0])
@@ -288,9 +308,9 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
 
         from treeform.geometry import leaf_texture, tree_mesh
 
-        leaf_size = _leaf_size(layout.crown_mask, mpp)
-        edge = ndi.distance_transform_edt(tree_mask) if cfg.prune else None
-        depth_bound = row_half_widths(tree_mask) if cfg.prune else None
+        leaf_size = _leaf_size(crown_c, mpp)  # the whole crown's scale (continued past the frame)
+        edge = ndi.distance_transform_edt(tree_c) if cfg.prune else None
+        depth_bound = row_half_widths(tree_c) if cfg.prune else None
         trunk_radius = max(0.5 * layout.trunk_width * mpp, 0.01)  # the photo's trunk, not the pipe model's
         tex = leaf_texture(SEARCH_LEAF_TEXTURE, seed=cfg.seed, outline="bezier")
         scorer = SilhouetteScorer(cam, tree_mask, height=cfg.search_size)
@@ -298,9 +318,9 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
         try:
             for i, p in enumerate(proposals):
                 sk2d, reach_px = skeleton_for(p)
-                skel, fol = build_candidate(sk2d, p, species=species, base=layout.base, mpp=mpp, camera=cam,
+                skel, fol = build_candidate(sk2d, p, species=species, base=base_c, mpp=mpp, camera=cam,
                                             edge_distance=edge, leaf_size=leaf_size, reach=reach_px,
-                                            depth_bound=depth_bound, trunk_radius=trunk_radius)
+                                            depth_bound=depth_bound, trunk_radius=trunk_radius, offset=offset)
                 err, _ = scorer.error(tree_mesh(skel, fol, radial_segments=4, leaf_texture=tex, seed=cfg.seed))
                 observed = p.skeleton == "wood"
                 pm = 1.0 if observed else prior(p.n_branches, species)
@@ -318,10 +338,10 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
         from treeform.growth.leaves import color_leaves
 
         sk2d, reach_px = skeleton_for(chosen)
-        skeleton, foliage = build_candidate(sk2d, chosen, species=species, base=layout.base, mpp=mpp, camera=cam,
+        skeleton, foliage = build_candidate(sk2d, chosen, species=species, base=base_c, mpp=mpp, camera=cam,
                                             edge_distance=edge, leaf_size=leaf_size, leaves=cfg.leaves,
                                             reach=reach_px, depth_bound=depth_bound,
-                                            trunk_radius=trunk_radius)
+                                            trunk_radius=trunk_radius, offset=offset)
         skeleton.meta.update({"method": "abs", "seed": cfg.seed, "species": species,
                               "source": Path(ph.source).name if ph.source else None, "n_leaves": len(foliage)})
         photo_leaves = cfg.leaf_texture == "photo" and len(foliage) > 0
@@ -380,6 +400,7 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                     "species_probabilities": {k: round(v, 4) for k, v in probs.items()}} if probs else {}),
                 "n_branches": chosen.n_branches,
                 "n_first_order": int(sk2d.meta["n_first_order"]),
+                "canvas_offset": [int(top), int(left)],
                 "skeleton_source": chosen.skeleton,
                 "wood_visible": bool(shows_wood),
                 "candidates": candidates,
@@ -414,6 +435,11 @@ def _write_outputs(res: SynthesisReconstruction, out_dir: Path, image: np.ndarra
     curve = line_plot({"best so far": res.metrics["candidate_curve"], "each model": errors},
                       title="reprojection error (eq. 3) vs tested models", xlabel="number of tested models",
                       ylabel="error")
+    top, left = res.metrics.get("canvas_offset", (0, 0))
+    if tuple(res.skeleton2d.shape[:2]) != image.shape[:2]:  # the photo on its continued crown's canvas (grey past it)
+        canvas = np.full((*res.skeleton2d.shape[:2], 3), 128, np.uint8)
+        canvas[top:top + image.shape[0], left:left + image.shape[1]] = image
+        image = canvas
     overlay = draw_skeleton(image, res.skeleton2d)
     sk_json = json.dumps(res.skeleton2d.to_dict())
 
