@@ -93,6 +93,12 @@ def test_tiles_shading_sharing_and_determinism():
     _, fs = photo_leaf_atlas(cards, CAM, img, alpha, visible=vis, max_tiles=20, seed=3)
     assert len(np.unique(fs.uv, axis=0)) == 20
     assert np.isin(fs.uv[~vis].view([("", fs.uv.dtype)] * 4), fs.uv[vis].view([("", fs.uv.dtype)] * 4)).all()
+    # more visible cards than max_tiles: smaller tiles, each visible card still its own (not another card's patch)
+    big, fa = photo_leaf_atlas(cards, CAM, img, alpha, max_tiles=20, seed=3)
+    assert len(np.unique(fa.uv, axis=0)) == 50
+    assert big.shape[0] * big.shape[1] <= a1.shape[0] * a1.shape[1]  # in no more texels than before
+    fixed, ff = photo_leaf_atlas(cards, CAM, img, alpha, max_tiles=20, tile=16, seed=3)  # a tile size asked for stays
+    assert len(np.unique(ff.uv, axis=0)) == 20
 
 
 def test_bad_inputs_are_one_line_errors():

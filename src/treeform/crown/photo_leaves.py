@@ -241,7 +241,9 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
         photo's own resolution) as a power of two in [16, 32].
     max_tiles : int
         At most this many distinct tiles: past it, the cards hidden from the camera
-        (``visible`` False) share the tile of the nearest visible card in the photo.
+        (``visible`` False) share the tile of the nearest visible card in the photo. With the
+        automatic ``tile`` and more visible cards than this, the tiles halve (down to 8 texels)
+        and four times as many fit in the same texels.
     visible : ndarray, shape (M,), bool, optional
         Cards the camera sees (default: all).
     shade : ndarray, shape (M,), optional
@@ -300,6 +302,10 @@ def photo_leaf_atlas(foliage: Foliage, camera: Camera, image: np.ndarray, alpha:
 
     if tile is None:
         tile = _tile_size(_card_pixels(foliage, camera))
+        # more cards the camera sees than tiles: smaller tiles, four times as many in the same texels,
+        # rather than visible cards wearing other cards' patches
+        while int(vis.sum()) > max_tiles and tile > 8:
+            tile, max_tiles = tile // 2, max_tiles * 4
     tile = check_int(tile, "tile", 8, 128)
 
     # tiles: every card its own while they fit, else the hidden ones borrow a visible one's
