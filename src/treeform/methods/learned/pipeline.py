@@ -74,14 +74,10 @@ def dress_from_photo(skeleton, foliage, bark_texture, leaf_texture, *, cfg: Lear
     tree = seg.tree_mask
     leafy = tree & ~trunk_pixels(seg, layout)  # the trunk below the crown carries no leaves
     if cfg.carve:
-        if crown is not None:
-            from treeform.methods._single_photo import on_canvas
+        from treeform.methods._single_photo import on_canvas
 
-            canvas, offset = crown
-            skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, on_canvas(tree, canvas, offset),
-                                                    offset=offset)
-        else:
-            skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, tree)
+        outline, offset = (on_canvas(tree, *crown), crown[1]) if crown is not None else (tree, (0, 0))
+        skeleton, foliage = carve_to_silhouette(skeleton, foliage, camera, outline, offset=offset)
     if cfg.fill and len(foliage) and rbv is not None:
         foliage = fill_silhouette(skeleton, foliage, camera, leafy, rbv, mpp=mpp, seed=cfg.seed)
     if seg.wood_mask.sum() > 20:
@@ -157,7 +153,7 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         # crown, it drew volumes that fit the photo worse: front SSIM 0.50 -> 0.33 on Platanus occidentalis 1),
         # and its volume, drawn for a whole tree, is fitted to the part of it the photo shows
         crown, offset, whole = continued_crown(layout, enabled=cfg.beyond_frame)
-        cut = offset != (0, 0)
+        cut = crown.shape != seg.tree_mask.shape  # (a crown cut on the right alone has offset (0, 0))
         levels = predict_rbv(seg.labels)
         tree_h = float(cfg.tree_height or load_reference_height(species))
         norm = np.maximum(levels[cfg.rbv_level - 1], 1e-3)
