@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from treeform._shared.errors import InputError
 from treeform.growth.bimodal import (bimodal_grow, clamp_into, half_centroid, local_thickness, mask_markers,
                                      orient_scaffold, planar_scaffold, resample_scaffold)
 from treeform.growth.phenomenological import grow
@@ -179,3 +180,51 @@ def test_a_branch_mask_out_of_reach_of_the_base_is_ignored_not_a_bare_stump():
     free = bimodal_grow(p, target, seed=2)
     assert "branch mask ignored" in rec.meta["mask_note"]
     assert rec.n_nodes > 100 and rec.n_nodes == free.n_nodes
+
+
+def test_the_bole_keeps_one_stem_where_only_the_trunks_foot_shows():
+    # a crown down to the ground and only the trunk's foot in the wood mask (leaves hide the rest): the
+    # volume's limbs sprouted from the foot's top, 3 % up, and crossed the 5 % plane as a bush of stems
+    from treeform.metrics.treeform_metrics import stems_at
+
+    p = load_species("oak")
+    rbv = RadialBoundingVolume(np.full((8, 8), 3.0), 10.0)
+    mask = np.zeros((200, 160), bool)
+    mask[194:200, 76:84] = True  # 5 cm pixels: 0.3 m of a 0.4 m trunk
+    kw = dict(mask=mask, mask_scale=0.05, mask_base=(80.0, 200.0), seed=1)
+    bush = bimodal_grow(p, rbv, **kw)
+    tree = bimodal_grow(p, rbv, bole=0.1, **kw)
+    assert stems_at(bush, fraction=0.05) > 3
+    assert stems_at(tree, fraction=0.05) == 1
+    low = tree.positions[:, 1] < 0.99  # below the bole (1 m): the stem alone, straight up from the base
+    assert np.abs(tree.positions[low][:, [0, 2]]).max() < 0.1
+    with pytest.raises(InputError, match="bole"):
+        bimodal_grow(p, rbv, bole=0.9, **kw)
+
+
+def test_the_stem_follows_the_photos_trunk_as_one_tube():
+    # a leaning trunk 10 px (0.5 m) wide up to 40 % of the height, then two limbs; the trunk's traced centre
+    # line is the stem: one tube of the trunk's width along it, the limbs from its top
+    from treeform.metrics.treeform_metrics import stems_at
+
+    p = load_species("oak")
+    radii = np.full((8, 8), 3.0)
+    radii[:3] = 0.6
+    rbv = RadialBoundingVolume(radii, 10.0)
+    mask = np.zeros((200, 160), bool)
+    rows = np.arange(120, 200)
+    centre = 80 - (200 - rows) * 10 / 80  # leans 10 px (0.5 m) to the left over 4 m
+    for r, c in zip(rows, centre):
+        mask[r, int(round(c)) - 5:int(round(c)) + 5] = True
+    for k in range(60):
+        mask[120 - k, 70 - k:72 - k] = True
+        mask[120 - k, 68 + k:70 + k] = True
+    path = np.array([[80.0, 200.0], [70.0, 120.0]])
+    sk = bimodal_grow(p, rbv, mask=mask, mask_scale=0.05, mask_base=(80.0, 200.0), seed=1, bole=0.1,
+                      trunk_path=path, orient=False)
+    stem = (sk.order == 0) & (sk.positions[:, 1] < 3.9)
+    y, x = sk.positions[stem, 1], sk.positions[stem, 0]
+    assert len(y) >= 4 and np.allclose(x, -0.5 * y / 4.0, atol=0.05)  # on the traced line
+    assert np.all((sk.radius[stem] > 0.17) & (sk.radius[stem] < 0.26))  # the trunk's half-width, tapering
+    assert np.all(np.diff(sk.radius[stem][np.argsort(y)]) <= 1e-9)
+    assert stems_at(sk, fraction=0.05) == stems_at(sk, fraction=0.2) == 1

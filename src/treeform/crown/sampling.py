@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from treeform._shared.checks import check_array
+from treeform._shared.checks import check_array, check_positive
 from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 
@@ -329,14 +329,30 @@ the photo decides (:func:`card_cover`): chosen on the 14 library cut-outs, whose
 median error 0.5: 13.7 %, 0.7: 11.7 %, 0.85: 10.8 %, 0.95: 10.7 % but a sparse birch loses cards it needs)."""
 
 
+CARVE_BRIDGE = 0.05
+"""Longest stretch of branch, as a share of the tree's height, that may run outside the photo's silhouette
+between two stretches inside it and stay (:func:`carve_to_silhouette`): a limb crossing a gap of the mask. A
+longer excursion is a wire looping round the crown's outline in the photo's view: it goes, and the branch past
+it hangs from the node before it."""
+
+
+OUTLINE_CLOSING = 0.04
+"""Radius, as a share of the mask's height, of the closing that makes the tree's outline from its mask for
+:func:`carve_to_silhouette`'s wires: the open lower crown, where the mask shows thin limbs only, lies within it."""
+
+
 def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: int = 1,
-                        cover: float = CARD_COVER, offset: tuple = (0, 0)):
+                        cover: float = CARD_COVER, offset: tuple = (0, 0), bridge: float = CARVE_BRIDGE):
     """The tree cut to the cone of its silhouette: branch ends and cards outside ``mask``'s outline go.
 
-    A node stays while it or a node above it on its branches projects inside ``mask`` closed
-    and grown by ``margin`` pixels, so a limb crossing a gap of the mask is kept whole and a
-    branch ends where it leaves the silhouette for good; the trunk (order 0) always stays, as
-    a mask may miss part of it. A card stays when its node stays and at least ``cover`` of its
+    A node stays while it or a node further on its branches projects inside ``mask`` closed and
+    grown by ``margin`` pixels: a branch ends where it leaves the silhouette for good, and a limb
+    across a hole of the crown is kept whole. A stretch of branch outside the outline (the holes
+    filled) stays only when short (at most ``bridge`` times the tree's height along it) between
+    two stretches inside: a limb crossing a narrow gap of the mask. A longer one is a wire looping
+    round the crown in the photo's view: it goes, and the branch past it hangs, where it is, from
+    the node before it, if the straight limb between them lies within the outline (else it goes
+    too). The trunk (order 0) always stays, as a mask may miss part of it. A card stays when its node stays and at least ``cover`` of its
     square, drawn where it projects (its edge at its own depth), lies on the mask: a card whose
     centre alone is inside reaches half its edge past the outline, or over a gap between two
     whorls (on the 14 library cut-outs, whose alpha is exact, keeping cards by their centre on
@@ -358,6 +374,9 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     offset : (int, int)
         ``(top, left)``: the camera's pixel (u, v) is ``mask[v + top, u + left]`` (a crown continued
         past the frame, :func:`treeform.crown.frame.beyond_frame`).
+    bridge : float
+        Longest outside stretch kept, as a share of the tree's height (0: none; a large number:
+        every branch that comes back inside stays whole).
 
     Returns
     -------
@@ -383,17 +402,79 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     mask = np.asarray(mask, bool)
     disk = np.hypot(*np.mgrid[-margin:margin + 1, -margin:margin + 1]) <= margin
     grown = ndi.binary_dilation(ndi.binary_closing(mask, disk, border_value=0), disk)
-    inside = visual_hull_contains(camera, grown, skeleton.positions, offset=offset)
+    inside = visual_hull_contains(camera, grown, skeleton.positions, offset=offset) | (skeleton.order == 0)
+    par = skeleton.parent
+    back = inside.copy()  # a node inside, or one further on its branches is
     for i in range(skeleton.n_nodes - 1, 0, -1):  # children come after their parents
-        if inside[i]:
-            inside[skeleton.parent[i]] = True
-    skeleton, new = skeleton.prune(inside | (skeleton.order == 0))
+        if back[i]:
+            back[par[i]] = True
+    # path length outside the outline (the mask closed over its gaps and holes: a limb through the open
+    # lower crown, or across a hole, stays), from the last node inside above (up) and to the next one inside
+    # further on (down)
+    rows = np.flatnonzero(mask.any(axis=1))
+    r = max(1, int(round(OUTLINE_CLOSING * (rows[-1] - rows[0] + 1)))) if len(rows) else 1
+    ball = np.hypot(*np.mgrid[-r:r + 1, -r:r + 1]) <= r
+    outline = ndi.binary_fill_holes(ndi.binary_closing(np.pad(grown, r + 1), ball)[r + 1:-(r + 1), r + 1:-(r + 1)])
+    within = visual_hull_contains(camera, outline, skeleton.positions, offset=offset)
+    step = np.zeros(skeleton.n_nodes)
+    step[1:] = np.linalg.norm(skeleton.positions[1:] - skeleton.positions[par[1:]], axis=1)
+    up = np.where(within, 0.0, np.inf)
+    down = np.where(within, 0.0, np.inf)
+    trunk = skeleton.order == 0
+    for i in range(1, skeleton.n_nodes):  # parents come first
+        if not within[i] and not trunk[i]:  # (the trunk outside the outline anchors nothing)
+            up[i] = up[par[i]] + step[i]
+    for i in range(skeleton.n_nodes - 1, 0, -1):
+        if not within[par[i]]:
+            down[par[i]] = min(down[par[i]], down[i] + step[i])
+    height = float(np.ptp(skeleton.positions[:, 1])) if skeleton.n_nodes > 1 else 0.0
+    # (a stretch with nothing within the outline above it but a trunk outside it -- the way up from a trunk the
+    # mask missed, or from a base put in the wrong place -- is not a wire: it stays where it leads inside)
+    wire = back & ~inside & np.isfinite(up) & (up + down > check_positive(bridge, "bridge", allow_zero=True) * height)
+    # a wire's nodes go and the branch past it hangs, where it is, from the node before it -- where the
+    # straight limb between them lies inside the silhouette (else it would only be a shorter wire: it goes)
+    keep = back & ~wire
+    anc = par.copy()  # nearest node kept above
+    for i in range(1, skeleton.n_nodes):
+        if not keep[par[i]]:
+            anc[i] = anc[par[i]]
+    rejoin = np.flatnonzero(keep & (par >= 0) & ~keep[np.maximum(par, 0)])
+    if len(rejoin):
+        t = np.linspace(0.0, 1.0, 9)[1:-1, None, None]
+        chord = (1 - t) * skeleton.positions[anc[rejoin]] + t * skeleton.positions[rejoin]
+        on = visual_hull_contains(camera, outline, chord.reshape(-1, 3), offset=offset).reshape(len(t), -1).all(0)
+        cut = np.zeros(skeleton.n_nodes, bool)
+        cut[rejoin[~on]] = True
+        for i in range(1, skeleton.n_nodes):  # what grows past a rejoin that goes, goes with it
+            cut[i] |= cut[par[i]]
+        keep &= ~cut
+    skeleton, new = _splice(skeleton, keep)
     if len(foliage):
         old = foliage.node
         node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
         kept = ((old < 0) | (node >= 0)) & (card_cover(camera, mask, foliage, offset=offset) >= cover)
         foliage = replace(foliage.subset(kept), node=node[kept])
     return skeleton, foliage
+
+
+def _splice(skeleton, keep: np.ndarray):
+    """The nodes selected by ``keep``, each hung from its nearest kept ancestor (a node whose ancestors are
+    all dropped goes); the root always stays. Returns the skeleton and each old node's new index (-1: gone)."""
+    from treeform.structures import TreeSkeleton
+
+    keep = np.asarray(keep, bool).copy()
+    keep[0] = True
+    par = skeleton.parent
+    anc = par.copy()  # nearest kept ancestor
+    for i in range(1, skeleton.n_nodes):  # parents come first
+        if not keep[par[i]]:
+            anc[i] = anc[par[i]]
+    idx = np.flatnonzero(keep)
+    new = np.full(skeleton.n_nodes, -1, np.int64)
+    new[idx] = np.arange(len(idx))
+    parent = np.where(anc[idx] >= 0, new[np.maximum(anc[idx], 0)], -1)
+    return TreeSkeleton(skeleton.positions[idx], parent, skeleton.radius[idx], skeleton.order[idx],
+                        skeleton.age[idx], dict(skeleton.meta)), new
 
 
 def card_cover(camera, mask: np.ndarray, foliage, offset: tuple = (0, 0)) -> np.ndarray:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from treeform._shared.checks import check_array, check_positive
+from treeform._shared.checks import check_array, check_positive, check_range
 from treeform._shared.errors import InputError
 from treeform._shared.rng import as_rng
 from treeform._shared.timing import ProgressCallback, StageTimer
@@ -292,6 +292,28 @@ class _AboveGround:
         return np.asarray(points)[:, 1] >= 0.0
 
 
+class _AboveBole:
+    """An envelope cut below the height ``floor`` above its origin, but for the stem: within
+    ``tolerance`` of the ``stem`` points (the scaffold's nodes below it). No branch grows, or
+    bends, down below the bole."""
+
+    def __init__(self, env, floor: float, stem: np.ndarray, tolerance: float):
+        from scipy.spatial import cKDTree
+
+        self.env, self.floor, self.tol = env, float(floor), float(tolerance)
+        self.y0 = float(np.asarray(env.origin, np.float64)[1])
+        self.stem = cKDTree(np.asarray(stem, np.float64).reshape(-1, 3))
+
+    def contains(self, points):
+        p = np.asarray(points, np.float64)
+        ok = np.asarray(self.env.contains(p), bool)
+        low = ok & (p[:, 1] - self.y0 < self.floor)
+        if low.any():
+            d, _ = self.stem.query(p[low], distance_upper_bound=self.tol)
+            ok[np.flatnonzero(low)[~np.isfinite(d)]] = False
+        return ok
+
+
 class _Shifted:
     """An envelope seen from coordinates shifted by ``-offset``, plus a thin column around the axis.
 
@@ -313,15 +335,18 @@ class _Shifted:
 
 def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance=None,
                     influence_radius: float | None = None, perception_angle: float = 90.0,
-                    envelope=None, root=None, trunk_height: float = 0.0) -> TreeSkeleton:
+                    envelope=None, root=None, trunk_height: float = 0.0, trunk=None,
+                    sprout_above: float | None = None) -> TreeSkeleton:
     """Self-organizing growth toward markers from ``root``, growing up first (§4.4, Fig. 8c).
 
     Reuses :func:`treeform.growth.space_colonization` with a perception cone. ``root``
     defaults to the bottom-most marker, dropped to y = 0; the result is expressed with
     the root at the origin (``envelope`` is given in the markers' coordinates). With
     ``trunk_height`` > 0 a vertical trunk of that height is laid first and only its top
-    sprouts (a bole through the RBV's narrow lowest layers). ``kill_distance`` may be one
-    distance per marker.
+    sprouts (a bole through the RBV's narrow lowest layers); ``trunk`` (K, 3), a polyline
+    from ``root`` in the markers' coordinates, is laid instead (it may lean and bend), and
+    with ``sprout_above`` its nodes at least that high sprout too, not its top alone.
+    ``kill_distance`` may be one distance per marker.
     """
     from treeform.growth.radii import branch_orders, pipe_model_radii
     from treeform.growth.space_colonization import space_colonization
@@ -332,9 +357,13 @@ def planar_scaffold(markers: np.ndarray, *, segment_length: float, kill_distance
         root = markers[np.argmin(markers[:, 1])].copy()
         root[1] = 0.0
     root = np.asarray(root, np.float64).reshape(3)
-    k = max(1, int(trunk_height / seg) + 1)
-    start = root + np.outer(np.linspace(0, trunk_height, k), [0.0, 1.0, 0.0])
-    growable = np.zeros(k, bool)
+    if trunk is None:
+        k = max(1, int(trunk_height / seg) + 1)
+        start = root + np.outer(np.linspace(0, trunk_height, k), [0.0, 1.0, 0.0])
+    else:
+        start = _along(np.asarray(trunk, np.float64).reshape(-1, 3), seg)
+        k = len(start)
+    growable = np.zeros(k, bool) if sprout_above is None else start[:, 1] >= sprout_above
     growable[-1] = True
     res = space_colonization(markers, start, influence_radius=influence_radius or 40 * seg,
                              kill_distance=2.0 * seg if kill_distance is None else kill_distance, segment_length=seg,
@@ -349,13 +378,14 @@ MAX_VOLUME_MARKERS = 20_000
 
 
 def _grow_into_volume(scaffold: TreeSkeleton, rbv: RadialBoundingVolume, n_markers: int, angle: float,
-                      rng: np.random.Generator) -> TreeSkeleton:
+                      rng: np.random.Generator, floor: float = 0.0) -> TreeSkeleton:
     """Go on growing a (turned) scaffold by space colonization toward markers spread through the RBV.
 
     Blue-noise markers fill the volume; those near the scaffold are removed at once; every
-    scaffold node may sprout, within a perception cone of half-angle ``angle``; the internode
-    is 1/60 of the RBV's height, as the volume scaffold without a mask. New nodes follow the
-    scaffold's (its order is kept) with pipe-model radii left to the crown.
+    scaffold node at or above the height ``floor`` (metres) may sprout, toward the markers
+    above it, within a perception cone of half-angle ``angle``; the internode is 1/60 of the
+    RBV's height, as the volume scaffold without a mask. New nodes follow the scaffold's (its order is kept) with
+    pipe-model radii left to the crown.
     """
     from treeform.growth.space_colonization import space_colonization
     from treeform.growth.sampling import blue_noise_points
@@ -366,23 +396,45 @@ def _grow_into_volume(scaffold: TreeSkeleton, rbv: RadialBoundingVolume, n_marke
     lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
     hi = np.asarray(rbv.origin) + [r, height, r]
     markers = blue_noise_points(rbv.contains, (lo, hi), int(n_markers), seed=rng)
+    markers = markers[markers[:, 1] - rbv.origin[1] >= floor]  # no limb grows down below the bole
     if len(markers) == 0:
         return scaffold
     res = space_colonization(markers, scaffold.positions, scaffold.parent, influence_radius=40 * seg,
                              kill_distance=2 * seg, segment_length=seg, perception_angle=float(angle),
-                             envelope=_Shifted(rbv, np.zeros(3), axis_tolerance=2 * seg))
+                             envelope=_Shifted(rbv, np.zeros(3), axis_tolerance=2 * seg),
+                             growable=scaffold.positions[:, 1] >= floor)
     m = len(res.positions) - scaffold.n_nodes
     return TreeSkeleton(res.positions, res.parent, np.concatenate([scaffold.radius, np.full(m, scaffold.radius.min())]),
                         np.concatenate([scaffold.order, np.full(m, scaffold.order.max() + 1)]),
                         np.concatenate([scaffold.age, np.zeros(m)]))
 
 
+def _along(polyline: np.ndarray, step: float) -> np.ndarray:
+    """Nodes about ``step`` apart along a (K, 3) polyline on the plane z = 0, ends included."""
+    from treeform.contour.resample import resample_polyline
+
+    length = float(np.linalg.norm(np.diff(polyline, axis=0), axis=1).sum())
+    xy = resample_polyline(polyline[:, :2], max(2, int(np.ceil(length / step)) + 1), endpoint=True)
+    return np.column_stack([xy, np.zeros(len(xy))])
+
+
+def _stem(frame: MaskFrame, path, height: float) -> np.ndarray:
+    """The one stem a mask's scaffold starts from, (K, 3) from the base at the origin: along the
+    photo's traced trunk ``path`` ((column, row) pixels, base first; None: not traced), then
+    straight up, hidden, to ``height`` where the traced trunk ends lower."""
+    pts = np.zeros((1, 3)) if path is None else frame.to_world(path[:, 0] - 0.5, path[:, 1] - 0.5)
+    pts[0] = 0.0
+    if pts[-1, 1] < height:
+        pts = np.vstack([pts, [pts[-1, 0], height, 0.0]])
+    return pts
+
+
 def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None = None, mask_scale: float | None = None,
                  mask_base=None, seed=0,
                  markers: int = 4000, segment_length: float | None = None, max_markers: int = 40_000,
                  crown_years: int | None = None, spacing: float | None = None, orient: bool = True, clamp: bool = True,
-                 marker_density: float = 0.5, perception_angle: float = 50.0,
-                 progress: ProgressCallback | None = None) -> TreeSkeleton:
+                 marker_density: float = 0.5, perception_angle: float = 50.0, bole: float = 0.0,
+                 trunk_path=None, progress: ProgressCallback | None = None) -> TreeSkeleton:
     """Grow a tree by the bi-modal model of seed 003 §4.3–4.4 inside a radial bounding volume.
 
     Parameters
@@ -424,6 +476,19 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         Half-angle (degrees) of the perception cone of that volume growth (Palubicki et al.
         2009): it bounds the angle at which new limbs leave the scaffold, so it is a species
         trait (:func:`treeform.growth.species.load_perception_angle`).
+    bole : float in [0, 0.5]
+        Share of the RBV's height below which no branch leaves the stem: a tree stands on
+        one stem even where its crown hangs down to the ground or hides the trunk (0: as the
+        mask and the volume have it). With a mask, its scaffold starts from one stem (see
+        ``trunk_path``) that reaches at least that high, straight up where low foliage hides
+        the trunk; the volume scaffold's bole reaches at least that high; and no growth after
+        that sprouts, or bends, below it.
+    trunk_path : ndarray, shape (K, 2), optional
+        With a mask: the photo's trunk, a (column, row) pixel polyline from ``mask_base`` up to
+        where the trunk enters the crown (:attr:`treeform.crown.layout.TreeLayout.trunk_path`).
+        The scaffold starts from one stem laid along it (and on up to ``bole``), whose nodes
+        above the bole sprout; the wood it covers draws no limbs, so a wide trunk becomes one
+        tube instead of a strand per run of wood pixels.
     progress : callable, optional
 
     Returns
@@ -444,6 +509,7 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
     timer = StageTimer(progress)
     height = rbv.physical_height
     seg = segment_length or height / 60
+    bole_h = check_range(bole, "bole", 0.0, 0.5) * height
     mask_note = None
 
     def volume_scaffold():
@@ -451,13 +517,14 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         lo = np.asarray(rbv.origin) + [-r, 0.0, -r]
         hi = np.asarray(rbv.origin) + [r, height, r]
         pts = blue_noise_points(rbv.contains, (lo, hi), markers, seed=rng) - [rbv.origin[0], 0, rbv.origin[2]]
+        pts = pts[pts[:, 1] - rbv.origin[1] >= bole_h]  # no limb grows down below the bole
         local = _Shifted(rbv, rbv.origin * [1, 0, 1], axis_tolerance=2 * seg)
         # a bole up to the first layer wide enough to branch in
         radii = rbv.physical_radii.max(axis=1)
         wide = np.flatnonzero(radii > min(4 * seg, 0.5 * radii.max()))
-        bole = (wide[0] / len(radii)) * height
+        first = max((wide[0] / len(radii)) * height, bole_h)
         return pts, planar_scaffold(pts, segment_length=seg, perception_angle=120.0, envelope=local,
-                                    root=np.zeros(3), trunk_height=bole)
+                                    root=np.zeros(3), trunk_height=first)
 
     with timer.stage("markers"):
         if mask is not None:
@@ -471,9 +538,22 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
         if mask is not None:
             # a marker goes once a node passes within its branch's half-width (one tube per branch)
             kill = np.maximum(1.5 * seg, (thick + 0.5) * frame.scale)
-            scaffold = planar_scaffold(pts, segment_length=seg, kill_distance=kill, perception_angle=90.0,
-                                       root=np.zeros(3), envelope=_AboveGround())
-            if scaffold.n_nodes < 3:
+            stem, up, laid, stem_r = None, np.ones(len(pts), bool), 1, 0.0
+            if bole_h > 0 or trunk_path is not None:
+                from scipy.spatial import cKDTree
+
+                # the stem stands for the wood it covers and for all below the bole: the rest draws limbs
+                path = None if trunk_path is None else check_array(trunk_path, "trunk_path", ndim=2).reshape(-1, 2)
+                stem = _stem(frame, path, bole_h)
+                nodes = _along(stem, seg)
+                d, _ = cKDTree(nodes[:, :2]).query(pts[:, :2])
+                on = d <= 2 * seg
+                stem_r = (np.median(thick[on]) - 0.5) * frame.scale if on.any() else 0.0  # the trunk's half-width
+                up = (pts[:, 1] >= bole_h) & ~((d <= max(1.5 * stem_r, 2 * seg)) & (pts[:, 1] <= stem[-1, 1] + stem_r))
+                laid = len(nodes)
+            scaffold = planar_scaffold(pts[up], segment_length=seg, kill_distance=kill[up], perception_angle=90.0,
+                                       root=np.zeros(3), envelope=_AboveGround(), trunk=stem, sprout_above=bole_h)
+            if stem is None and scaffold.n_nodes - laid < 2:
                 # the branches the mask shows are out of the root's reach (e.g. the trunk is
                 # hidden or cut off by the frame): grow from the volume alone, as without a mask
                 mask_note = f"branch mask ignored: its scaffold reached {scaffold.n_nodes} node(s) from the base"
@@ -493,7 +573,7 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
             cen = np.stack([np.bincount(owner, pts[:, c], scaffold.n_nodes) for c in (0, 1)], 1)
             moved = scaffold.positions.copy()
             has = cnt > 0
-            has[0] = False
+            has[:laid] = False  # the stem stays on the photo's trunk line
             moved[has, :2] = cen[has] / cnt[has, None]
             scaffold = TreeSkeleton(moved, scaffold.parent, scaffold.radius, scaffold.order, scaffold.age)
             # every branch pixel belongs to its nearest scaffold node, whose tube must reach it,
@@ -507,6 +587,9 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
             reach = np.zeros(scaffold.n_nodes)
             np.maximum.at(reach, owner, d / frame.scale)
             r_mask = np.minimum(reach + 0.5, cap) * frame.scale
+            if stem is not None and stem_r > 0:  # one tube, the photo's trunk width, tapering a fifth to its top
+                y = scaffold.positions[:laid, 1]
+                r_mask[:laid] = stem_r * (1.0 - 0.2 * y / max(float(y.max()), 1e-9))
         step = spacing or 0.5 * params.internode_length_base
         scaffold, kept = resample_scaffold(scaffold, step)
         if mask is not None:
@@ -523,13 +606,15 @@ def bimodal_grow(params, rbv: RadialBoundingVolume, *, mask: np.ndarray | None =
                            MAX_VOLUME_MARKERS))
         if mask is not None and n_volume > 0:
             n0 = scaffold.n_nodes
-            scaffold = _grow_into_volume(scaffold, rbv, n_volume, perception_angle, rng)
+            scaffold = _grow_into_volume(scaffold, rbv, n_volume, perception_angle, rng, floor=bole_h)
             r_mask = np.concatenate([r_mask, np.zeros(scaffold.n_nodes - n0)])
     with timer.stage("crown"):
         from dataclasses import replace
 
         years = params.age if crown_years is None else max(1, int(crown_years))
-        sk = grow(replace(params, age=years), seed=rng, envelope=rbv, initial=scaffold)
+        low = scaffold.positions[:, 1] - rbv.origin[1] < bole_h
+        env = rbv if bole_h <= 0 or not low.any() else _AboveBole(rbv, bole_h, scaffold.positions[low], 2 * seg)
+        sk = grow(replace(params, age=years), seed=rng, envelope=env, initial=scaffold)
     radius = sk.radius.copy()
     k = scaffold.n_nodes
     if mask is not None:

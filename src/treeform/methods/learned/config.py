@@ -5,7 +5,7 @@ from __future__ import annotations
 import numbers
 from dataclasses import asdict, dataclass, field
 
-from treeform._shared.checks import check_choice, check_height, check_int, check_positive
+from treeform._shared.checks import check_choice, check_height, check_int, check_positive, check_range
 from treeform._shared.checks import check_known_options
 from treeform._shared.errors import InputError
 
@@ -81,6 +81,9 @@ class GrowConfig:
     """A RadialBoundingVolume file (.npz): grow by the bi-modal model inside it (seed 003 §4.3–4.4)."""
     mask: str | None = None
     """A branch mask image (white = branch) seen from the front, with ``rbv``: the scaffold follows it."""
+    bole: float = 0.0
+    """With ``rbv``: share of the tree's height (0..0.5) below which no branch leaves the stem
+    (:func:`treeform.growth.bimodal.bimodal_grow`); 0: wherever the mask and the volume lead."""
 
     def validate(self) -> "GrowConfig":
         if not isinstance(self.species, str) or not self.species:
@@ -95,6 +98,7 @@ class GrowConfig:
         if self.leaf_size is not None:
             check_positive(self.leaf_size, "leaf_size")
         _check_ints(self, (("twig_tips", 1, 10_000), ("radial_segments", 3, 64), ("render_size", 32, 4096)))
+        check_range(self.bole, "bole", 0.0, 0.5)
         return self
 
     def to_dict(self) -> dict:
@@ -140,6 +144,11 @@ class LearnedConfig:
     leaf_texture: str = "photo"
     """'photo': leaf cards textured with the photo's crown, those the camera sees facing it
     (:func:`treeform.crown.photo_leaf_atlas`); 'procedural': the species' drawn leaves."""
+    bole: float = 0.1
+    """Share of the tree's height below which no branch leaves the stem: a crown that hangs to the
+    ground (or a mask that takes in the shrubs under it) still stands on one trunk, which goes on
+    up, hidden, where the photo's trunk disappears lower (as the envelope route's tenth; 0: branches
+    may leave the stem anywhere)."""
     fit_silhouette: bool = False
     """Rescale each layer of the predicted RBV so the photo's camera sees it span the tree mask's
     left and right extent (:func:`treeform.crown.rbv_fit.fit_rbv_to_silhouette`); False: the
@@ -173,6 +182,7 @@ class LearnedConfig:
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
+        check_range(self.bole, "bole", 0.0, 0.5)
         if self.rbv_level not in (1, 2, 3, 4, 5):
             raise InputError(f"rbv_level: expected 1..5, got {self.rbv_level!r}")
         _check_ints(self, (("max_size", 32, 8192), ("render_size", 32, 4096)))

@@ -142,7 +142,7 @@ def _read_branch_mask(path) -> np.ndarray:
 
 def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: ProgressCallback | None = None,
               config: GrowConfig | None = None, rbv_volume=None, branch_mask: np.ndarray | None = None,
-              mask_scale: float | None = None, mask_base=None, previews: bool = True, dress=None,
+              mask_scale: float | None = None, mask_base=None, trunk_path=None, previews: bool = True, dress=None,
               **overrides) -> GrowResult:
     """Grow a leafy, textured 3D tree of a species (seed 003 §4.3, Appendix Tables 2–3).
 
@@ -165,7 +165,8 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
     branch_mask : ndarray, shape (H, W), bool, optional
         In-memory branch mask (instead of the ``mask`` file), with its ``mask_scale``
         (metres per pixel) and ``mask_base`` ((column, row) of the tree base); see
-        :func:`~treeform.growth.bimodal.bimodal_grow`.
+        :func:`~treeform.growth.bimodal.bimodal_grow`; ``trunk_path`` ((K, 2) pixels, base first) is
+        the photo's trunk the scaffold's one stem follows.
     previews : bool
         Render the front / side / top preview strip (callers that render their own views
         turn it off).
@@ -224,8 +225,9 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
             mask = branch_mask if branch_mask is not None else (
                 _read_branch_mask(cfg.mask) if cfg.mask is not None else None)
             skeleton = bimodal_grow(params, rbv, mask=mask, mask_scale=mask_scale, mask_base=mask_base,
+                                    trunk_path=trunk_path if mask is not None else None,
                                     seed=cfg.seed, perception_angle=load_perception_angle(cfg.species),
-                                    marker_density=load_marker_density(cfg.species))
+                                    marker_density=load_marker_density(cfg.species), bole=cfg.bole)
         skeleton.meta["species"] = Path(cfg.species).stem
     with timer.stage("leaves"):
         from treeform.geometry import LOD_PRESETS, foliage_budget
