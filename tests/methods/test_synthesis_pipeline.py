@@ -67,6 +67,21 @@ def test_tree_matches_the_photo_and_is_3d(run):
     assert sk.positions[:, 1].min() >= 0.0 and res.foliage.positions[:, 1].min() >= 0.0  # nothing under the ground
 
 
+def test_no_twigs_below_the_bole_and_one_stem(run):
+    """The L-system's twigs on the lowest main branches hung round the trunk's foot: six branches crossed the
+    plane at 5 % of the sample's height. Below the bole (10 %) only the trunk and the given main branches
+    stand; leaves whose twig went stay where they were."""
+    res, _ = run
+    sk = res.skeleton
+    h = sk.positions[:, 1].max()
+    assert res.metrics["stems_at_5_percent"] == 1
+    assert not ((sk.positions[:, 1] < 0.1 * h) & (sk.order > 0)).any()
+    assert res.foliage.node.min() >= 0 and res.foliage.node.max() < sk.n_nodes
+    free = reconstruct(SAMPLE, seed=0, bole=0.0, **FAST)
+    assert free.metrics["stems_at_5_percent"] > 1
+    assert len(free.foliage) == len(res.foliage)  # the same leaves: none went with the twigs
+
+
 def test_same_seed_same_tree(run):
     res, _ = run
     again = reconstruct(SAMPLE, seed=0, **FAST)
@@ -170,11 +185,12 @@ def test_visible_wood_adds_wood_skeleton_proposals(photos_dir, gl):
     best = choose(m["candidates"])
     assert m["skeleton_source"] == best["skeleton"] and m["n_first_order"] == best["n_first_order"]
     assert m["search_error_best"] == best["error"]
-    # following the wood fits this photo as well as the best draw of foliage cuts (0.2939 against 0.2943
-    # when measured: a margin too thin to assert which wins, as one texel of mip rounding flipped it), and
-    # a wood proposal that went wrong (branches off the photo's wood) would be far behind
+    # following the wood fits this photo about as well as the best draw of foliage cuts (0.2939 against 0.2943
+    # when measured; 0.249 against 0.243 with no twigs below the bole: a margin too thin to assert which wins,
+    # as one texel of mip rounding flipped it), and a wood proposal that went wrong (branches off the photo's
+    # wood) would be far behind
     wood = min(c["error"] for c in m["candidates"] if c["skeleton"] == "wood")
-    assert wood <= 1.02 * min(c["error"] for c in m["candidates"] if c["skeleton"] == "foliage")
+    assert wood <= 1.05 * min(c["error"] for c in m["candidates"] if c["skeleton"] == "foliage")
 
 
 def test_leafy_photo_keeps_the_papers_search(run):

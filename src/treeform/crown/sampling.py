@@ -434,14 +434,11 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
     # a wire's nodes go and the branch past it hangs, where it is, from the node before it -- where the
     # straight limb between them lies inside the silhouette (else it would only be a shorter wire: it goes)
     keep = back & ~wire
-    anc = par.copy()  # nearest node kept above
-    for i in range(1, skeleton.n_nodes):
-        if not keep[par[i]]:
-            anc[i] = anc[par[i]]
     rejoin = np.flatnonzero(keep & (par >= 0) & ~keep[np.maximum(par, 0)])
     if len(rejoin):
+        anc = skeleton.nearest_kept(keep)[par[rejoin]]  # the node before the wire
         t = np.linspace(0.0, 1.0, 9)[1:-1, None, None]
-        chord = (1 - t) * skeleton.positions[anc[rejoin]] + t * skeleton.positions[rejoin]
+        chord = (1 - t) * skeleton.positions[anc] + t * skeleton.positions[rejoin]
         on = visual_hull_contains(camera, outline, chord.reshape(-1, 3), offset=offset).reshape(len(t), -1).all(0)
         cut = np.zeros(skeleton.n_nodes, bool)
         cut[rejoin[~on]] = True
@@ -458,21 +455,17 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
 
 
 def _splice(skeleton, keep: np.ndarray):
-    """The nodes selected by ``keep``, each hung from its nearest kept ancestor (a node whose ancestors are
-    all dropped goes); the root always stays. Returns the skeleton and each old node's new index (-1: gone)."""
+    """The nodes selected by ``keep``, each hung from its nearest kept ancestor; the root always stays.
+    Returns the skeleton and each old node's new index (-1: gone)."""
     from treeform.structures import TreeSkeleton
 
     keep = np.asarray(keep, bool).copy()
     keep[0] = True
-    par = skeleton.parent
-    anc = par.copy()  # nearest kept ancestor
-    for i in range(1, skeleton.n_nodes):  # parents come first
-        if not keep[par[i]]:
-            anc[i] = anc[par[i]]
     idx = np.flatnonzero(keep)
+    anc = skeleton.nearest_kept(keep)[np.maximum(skeleton.parent[idx], 0)]  # (the root's is itself: -1 below)
     new = np.full(skeleton.n_nodes, -1, np.int64)
     new[idx] = np.arange(len(idx))
-    parent = np.where(anc[idx] >= 0, new[np.maximum(anc[idx], 0)], -1)
+    parent = np.where(skeleton.parent[idx] >= 0, new[anc], -1)
     return TreeSkeleton(skeleton.positions[idx], parent, skeleton.radius[idx], skeleton.order[idx],
                         skeleton.age[idx], dict(skeleton.meta)), new
 

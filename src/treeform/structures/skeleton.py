@@ -138,6 +138,24 @@ class TreeSkeleton:
             chains.append(np.array(chain, dtype=np.int64))
         return chains
 
+    def nearest_kept(self, keep) -> np.ndarray:
+        """(N,) int64: for each node, the nearest of it and its ancestors that ``keep`` selects (-1: none).
+
+        Examples
+        --------
+        >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0.]]), np.array([-1, 0, 1, 1]))
+        >>> s.nearest_kept([True, False, True, False]).tolist()
+        [0, 0, 2, 0]
+        """
+        keep = np.asarray(keep, bool).reshape(-1)
+        if len(keep) != self.n_nodes:
+            raise InputError(f"TreeSkeleton.nearest_kept: keep has {len(keep)} entries for {self.n_nodes} nodes")
+        out = np.where(keep, np.arange(self.n_nodes), -1)
+        for i in range(1, self.n_nodes):  # parents come first
+            if not keep[i]:
+                out[i] = out[self.parent[i]]
+        return out
+
     def prune(self, keep) -> tuple["TreeSkeleton", np.ndarray]:
         """The nodes selected by ``keep`` whose ancestors are all selected (a dropped node takes
         its subtree with it); the root always stays.

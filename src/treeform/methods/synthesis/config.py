@@ -6,7 +6,7 @@ import numbers
 from dataclasses import asdict, dataclass
 
 from treeform._shared.defaults import DEFAULT_SEGMENTER
-from treeform._shared.checks import check_choice, check_height, check_int, check_known_options
+from treeform._shared.checks import check_choice, check_height, check_int, check_known_options, check_range
 from treeform._shared.errors import InputError
 
 SPECIES_PRIORS = {
@@ -59,6 +59,10 @@ class SynthesisConfig:
     """Fit the leaves to the photo's silhouette: drop those projecting outside it, shrink the
     cards that would overhang it (the image constrains the generative model; without it only
     the search does)."""
+    bole: float = 0.1
+    """Share of the tree's height below which the generative model grows no twigs: the L-system's twigs
+    on the lowest main branches hung down round the trunk's foot as a bush of stems; leaves may still
+    hang lower from the wood above (as the envelope and learned routes' bole; 0: twigs anywhere)."""
     beyond_frame: bool = True
     """Continue a crown the photo's top or side edges cut past them, rounded
     (:func:`treeform.crown.frame.beyond_frame`): the 2D skeleton is drawn on the continued crown, the
@@ -96,6 +100,7 @@ class SynthesisConfig:
 
         check_choice(self.lod, "lod", tuple(LOD_PRESETS))
         check_choice(self.leaf_texture, "leaf_texture", ("photo", "procedural"))
+        check_range(self.bole, "bole", 0.0, 0.5)
         if not isinstance(self.beyond_frame, bool):
             raise InputError(f"beyond_frame: expected true or false, got {self.beyond_frame!r}")
         if self.texture_size is not None:

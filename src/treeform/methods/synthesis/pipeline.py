@@ -147,7 +147,7 @@ def _fits(points: np.ndarray, camera, edge_distance: np.ndarray, base, mpp: floa
 def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, edge_distance: np.ndarray | None,
                     leaf_size: float, leaves: int | None = None, reach: list | None = None,
                     depth_bound: np.ndarray | None = None, trunk_radius: float | None = None,
-                    offset: tuple = (0, 0)):
+                    offset: tuple = (0, 0), bole: float = 0.0):
     """One model of the generative model (§4) from a 2D skeleton and a proposal.
 
     Parameters
@@ -176,6 +176,10 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
         ``(top, left)``: ``sk2d``, ``base``, ``edge_distance`` and ``depth_bound`` lie on a canvas
         around the photo, whose pixel (u, v) is the canvas's (u + left, v + top) (a crown continued
         past the frame, :func:`~treeform.methods._single_photo.continued_crown`).
+    bole : float
+        Share of the tree's height (its skeleton's, above the root) below which grown twigs go, with
+        what grows past them (the given main branches stay); their leaves stay where they are, hung
+        on the wood left above them.
 
     Returns
     -------
@@ -193,17 +197,24 @@ def build_candidate(sk2d, proposal, *, species: str, base, mpp: float, camera, e
                            trunk_radius=trunk_radius,
                            defines={"density": density, "spread": proposal.spread, "leaf_size": leaf_size})
     skeleton, foliage = grown.skeleton, grown.foliage
-    # grown wood below the ground (twigs of a low crown hanging behind the trunk) goes, with its
-    # subtree, and so does wood leaving the silhouette or the revolved crown
+    # grown wood below the ground or the bole (twigs of a low crown hanging round the trunk's foot) goes,
+    # with its subtree, and so does wood leaving the silhouette or the revolved crown
     ground = float(skeleton.positions[0, 1])
-    inside = skeleton.positions[:, 1] >= ground
+    floor = ground + bole * (float(skeleton.positions[:, 1].max()) - ground)
+    fit = skeleton.positions[:, 1] >= ground
     if edge_distance is not None:
-        inside &= _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound, offset) > 0
+        fit &= _fits(skeleton.positions, camera, edge_distance, base, mpp, depth_bound, offset) > 0
+    inside = fit & (skeleton.positions[:, 1] >= floor)
     if not inside.all():
+        old = skeleton
         skeleton, new = skeleton.prune(grown.given | inside)
         if len(foliage):
-            foliage = foliage.subset(np.flatnonzero(new[foliage.node] >= 0))
-            foliage.node = new[foliage.node]
+            # a leaf whose twig went for the bole alone stays where it is, on the wood left above it
+            node = np.where(new[foliage.node] >= 0, foliage.node, -1)
+            low = (node < 0) & fit[foliage.node]
+            node[low] = old.nearest_kept(new >= 0)[foliage.node[low]]
+            foliage = foliage.subset(np.flatnonzero(node >= 0))
+            foliage.node = new[node[node >= 0]]
     if len(foliage) and (foliage.positions[:, 1] < ground).any():
         foliage = foliage.subset(np.flatnonzero(foliage.positions[:, 1] >= ground))
     if edge_distance is not None and len(foliage):
@@ -320,7 +331,8 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
                 sk2d, reach_px = skeleton_for(p)
                 skel, fol = build_candidate(sk2d, p, species=species, base=base_c, mpp=mpp, camera=cam,
                                             edge_distance=edge, leaf_size=leaf_size, reach=reach_px,
-                                            depth_bound=depth_bound, trunk_radius=trunk_radius, offset=offset)
+                                            depth_bound=depth_bound, trunk_radius=trunk_radius, offset=offset,
+                                            bole=cfg.bole)
                 err, _ = scorer.error(tree_mesh(skel, fol, radial_segments=4, leaf_texture=tex, seed=cfg.seed))
                 observed = p.skeleton == "wood"
                 pm = 1.0 if observed else prior(p.n_branches, species)
@@ -341,7 +353,7 @@ def reconstruct(photo, *, mask=None, out=None, config: SynthesisConfig | None = 
         skeleton, foliage = build_candidate(sk2d, chosen, species=species, base=base_c, mpp=mpp, camera=cam,
                                             edge_distance=edge, leaf_size=leaf_size, leaves=cfg.leaves,
                                             reach=reach_px, depth_bound=depth_bound,
-                                            trunk_radius=trunk_radius, offset=offset)
+                                            trunk_radius=trunk_radius, offset=offset, bole=cfg.bole)
         skeleton.meta.update({"method": "abs", "seed": cfg.seed, "species": species,
                               "source": Path(ph.source).name if ph.source else None, "n_leaves": len(foliage)})
         photo_leaves = cfg.leaf_texture == "photo" and len(foliage) > 0
