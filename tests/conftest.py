@@ -9,14 +9,15 @@ SHARED = ROOT.parent / "shared" / "data"
 PHOTOS = SHARED / "photos"
 
 
-def isolated_photos() -> list[Path]:
+def isolated_photos(ratings=("isolated",)) -> list[Path]:
+    """The photos of ../shared/data/photos rated one of ``ratings`` (isolated, partial, ...); [] without them."""
     import csv
 
     path = PHOTOS / "ATTRIBUTION.csv"
     if not path.exists():
         return []
     with open(path) as f:
-        return [PHOTOS / r["file"] for r in csv.DictReader(f) if r["isolation_visual"] == "isolated"]
+        return [PHOTOS / r["file"] for r in csv.DictReader(f) if r["isolation_visual"] in ratings]
 
 
 @pytest.fixture
