@@ -9,17 +9,6 @@ SHARED = ROOT.parent / "shared" / "data"
 PHOTOS = SHARED / "photos"
 
 
-def isolated_photos(ratings=("isolated",)) -> list[Path]:
-    """The photos of ../shared/data/photos rated one of ``ratings`` (isolated, partial, ...); [] without them."""
-    import csv
-
-    path = PHOTOS / "ATTRIBUTION.csv"
-    if not path.exists():
-        return []
-    with open(path) as f:
-        return [PHOTOS / r["file"] for r in csv.DictReader(f) if r["isolation_visual"] in ratings]
-
-
 @pytest.fixture
 def khronos_report():
     """``report(path)``: the Khronos glTF validator's report of a GLB (tools/gltf_validate.mjs); skips
