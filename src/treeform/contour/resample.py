@@ -36,7 +36,8 @@ def resample_polyline(points, n: int, *, endpoint: bool = False) -> np.ndarray:
 
     Parameters
     ----------
-    points : ndarray, shape (K, 2)
+    points : ndarray, shape (K, D)
+        An image contour (D = 2) or a path in space (D = 3); a flat sequence is read as (K, 2).
     n : int
         Number of output points (>= 0).
     endpoint : bool
@@ -46,26 +47,30 @@ def resample_polyline(points, n: int, *, endpoint: bool = False) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (n, 2), float64
+    ndarray, shape (n, D), float64
         The first point is ``points[0]``. A zero-length polyline gives ``n`` copies of it.
 
     Examples
     --------
     >>> resample_polyline([[0, 0], [4, 0]], 4).tolist()
     [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]]
+    >>> resample_polyline([[0, 0, 0], [0, 2, 0], [2, 2, 0]], 3, endpoint=True).tolist()  # in space
+    [[0.0, 0.0, 0.0], [0.0, 2.0, 0.0], [2.0, 2.0, 0.0]]
     """
-    p = np.asarray(points, np.float64).reshape(-1, 2)
+    p = np.asarray(points, np.float64)
+    p = p.reshape(-1, 2) if p.ndim != 2 else p
     if len(p) == 0:
         raise InputError("points: empty polyline")
     if n <= 0:
-        return np.zeros((0, 2))
-    seg = np.hypot(*np.diff(p, axis=0).T) if len(p) > 1 else np.zeros(0)
+        return np.zeros((0, p.shape[1]))
+    d = np.diff(p, axis=0)
+    seg = np.hypot(*d.T) if p.shape[1] == 2 else np.linalg.norm(d, axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     total = s[-1]
     if total <= 0:
         return np.repeat(p[:1], n, axis=0)
     t = np.linspace(0.0, total, n) if endpoint and n > 1 else np.arange(n) * (total / n)
-    return np.column_stack([np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1])])
+    return np.column_stack([np.interp(t, s, p[:, k]) for k in range(p.shape[1])])
 
 
 def _arc(c: np.ndarray, start: int, steps: int) -> np.ndarray:

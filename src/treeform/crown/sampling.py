@@ -445,29 +445,13 @@ def carve_to_silhouette(skeleton, foliage, camera, mask: np.ndarray, *, margin: 
         for i in range(1, skeleton.n_nodes):  # what grows past a rejoin that goes, goes with it
             cut[i] |= cut[par[i]]
         keep &= ~cut
-    skeleton, new = _splice(skeleton, keep)
+    skeleton, new = skeleton.splice(keep)
     if len(foliage):
         old = foliage.node
         node = np.where(old >= 0, new[np.maximum(old, 0)], -1)
         kept = ((old < 0) | (node >= 0)) & (card_cover(camera, mask, foliage, offset=offset) >= cover)
         foliage = replace(foliage.subset(kept), node=node[kept])
     return skeleton, foliage
-
-
-def _splice(skeleton, keep: np.ndarray):
-    """The nodes selected by ``keep``, each hung from its nearest kept ancestor; the root always stays.
-    Returns the skeleton and each old node's new index (-1: gone)."""
-    from treeform.structures import TreeSkeleton
-
-    keep = np.asarray(keep, bool).copy()
-    keep[0] = True
-    idx = np.flatnonzero(keep)
-    anc = skeleton.nearest_kept(keep)[np.maximum(skeleton.parent[idx], 0)]  # (the root's is itself: -1 below)
-    new = np.full(skeleton.n_nodes, -1, np.int64)
-    new[idx] = np.arange(len(idx))
-    parent = np.where(skeleton.parent[idx] >= 0, new[anc], -1)
-    return TreeSkeleton(skeleton.positions[idx], parent, skeleton.radius[idx], skeleton.order[idx],
-                        skeleton.age[idx], dict(skeleton.meta)), new
 
 
 def card_cover(camera, mask: np.ndarray, foliage, offset: tuple = (0, 0)) -> np.ndarray:

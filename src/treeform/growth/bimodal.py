@@ -410,12 +410,11 @@ def _grow_into_volume(scaffold: TreeSkeleton, rbv: RadialBoundingVolume, n_marke
 
 
 def _along(polyline: np.ndarray, step: float) -> np.ndarray:
-    """Nodes about ``step`` apart along a (K, 3) polyline on the plane z = 0, ends included."""
+    """Nodes at most ``step`` apart along a (K, 3) polyline, ends included."""
     from treeform.contour.resample import resample_polyline
 
     length = float(np.linalg.norm(np.diff(polyline, axis=0), axis=1).sum())
-    xy = resample_polyline(polyline[:, :2], max(2, int(np.ceil(length / step)) + 1), endpoint=True)
-    return np.column_stack([xy, np.zeros(len(xy))])
+    return resample_polyline(polyline, max(2, int(np.ceil(length / step)) + 1), endpoint=True)
 
 
 def _stem(frame: MaskFrame, path, height: float) -> np.ndarray:

@@ -185,6 +185,34 @@ class TreeSkeleton:
         return TreeSkeleton(self.positions[idx], parent, self.radius[idx], self.order[idx], self.age[idx],
                             dict(self.meta)), new
 
+    def splice(self, keep) -> tuple["TreeSkeleton", np.ndarray]:
+        """The nodes selected by ``keep``, each hung, where it is, from its nearest selected ancestor
+        (unlike :meth:`prune`, a dropped node leaves its subtree); the root always stays.
+
+        Returns
+        -------
+        (TreeSkeleton, ndarray (N,) int64)
+            The spliced skeleton and each old node's new index (-1 where dropped).
+
+        Examples
+        --------
+        >>> s = TreeSkeleton(np.array([[0, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0.]]), np.array([-1, 0, 1, 1]))
+        >>> t, new = s.splice([True, False, True, True])
+        >>> new.tolist(), t.parent.tolist()
+        ([0, -1, 1, 2], [-1, 0, 0])
+        """
+        keep = np.asarray(keep, bool).reshape(-1).copy()
+        if len(keep) != self.n_nodes:
+            raise InputError(f"TreeSkeleton.splice: keep has {len(keep)} entries for {self.n_nodes} nodes")
+        keep[0] = True
+        idx = np.flatnonzero(keep)
+        new = np.full(self.n_nodes, -1, np.int64)
+        new[idx] = np.arange(len(idx))
+        above = self.nearest_kept(keep)[np.maximum(self.parent[idx], 0)]
+        parent = np.where(self.parent[idx] >= 0, new[above], -1)
+        return TreeSkeleton(self.positions[idx], parent, self.radius[idx], self.order[idx], self.age[idx],
+                            dict(self.meta)), new
+
     # ------------------------------------------------------------------ io
     def to_dict(self) -> dict:
         """A JSON-ready dict; floats rounded to 1e-6 m so output is byte-stable."""

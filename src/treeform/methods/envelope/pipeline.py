@@ -73,12 +73,12 @@ def _trunk_nodes(cam: Camera, mpp: float, path_px: np.ndarray, seg_len: float) -
 
 def _trunk_nodes_along(pts: np.ndarray, seg_len: float) -> np.ndarray:
     """Nodes every ``seg_len`` metres along a polyline (K, 3)."""
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if s[-1] <= 0:
+    from treeform.contour.resample import resample_polyline
+
+    length = float(np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))[-1]) if len(pts) > 1 else 0.0
+    if length <= 0:
         return np.stack([np.zeros(3), np.array([0.0, seg_len, 0.0])])
-    t = np.linspace(0, s[-1], max(2, int(s[-1] / seg_len) + 1))
-    return np.stack([np.interp(t, s, pts[:, k]) for k in range(3)], axis=1)
+    return resample_polyline(pts, max(2, int(length / seg_len) + 1), endpoint=True)
 
 
 def tree_form(tree_mask: np.ndarray) -> str:

@@ -225,7 +225,7 @@ def grow_tree(species: str = "oak", *, seed: int = 0, out=None, progress: Progre
             mask = branch_mask if branch_mask is not None else (
                 _read_branch_mask(cfg.mask) if cfg.mask is not None else None)
             skeleton = bimodal_grow(params, rbv, mask=mask, mask_scale=mask_scale, mask_base=mask_base,
-                                    trunk_path=trunk_path if mask is not None else None,
+                                    trunk_path=trunk_path,
                                     seed=cfg.seed, perception_angle=load_perception_angle(cfg.species),
                                     marker_density=load_marker_density(cfg.species), bole=cfg.bole)
         skeleton.meta["species"] = Path(cfg.species).stem

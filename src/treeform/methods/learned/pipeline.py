@@ -170,7 +170,7 @@ def reconstruct(photo, *, mask=None, out=None, config: LearnedConfig | None = No
         branch_mask = wood if wood.sum() >= 2 else None
         grown = grow_tree(species, seed=cfg.seed, rbv_volume=rbv, branch_mask=branch_mask, mask_scale=mpp,
                           mask_base=layout.base if branch_mask is not None else None,
-                          trunk_path=layout.trunk_path if branch_mask is not None else None, previews=False,
+                          trunk_path=layout.trunk_path, previews=False,
                           leaves=cfg.leaves, lod=cfg.lod, foliage=cfg.foliage, texture_size=cfg.texture_size,
                           bole=cfg.bole, dress=lambda *a: dress_from_photo(*a, cfg=cfg, camera=cam, image=image, seg=seg,
                                                             layout=layout, mpp=mpp, rbv=rbv,
