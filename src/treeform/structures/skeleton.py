@@ -178,12 +178,7 @@ class TreeSkeleton:
         keep[0] = True
         for i in range(1, self.n_nodes):  # parents come first: one forward sweep closes the set
             keep[i] = keep[i] and keep[self.parent[i]]
-        new = np.full(self.n_nodes, -1, np.int64)
-        idx = np.flatnonzero(keep)
-        new[idx] = np.arange(len(idx))
-        parent = np.where(self.parent[idx] >= 0, new[np.maximum(self.parent[idx], 0)], -1)
-        return TreeSkeleton(self.positions[idx], parent, self.radius[idx], self.order[idx], self.age[idx],
-                            dict(self.meta)), new
+        return self.splice(keep)  # every kept node's parent is kept: nothing is re-hung
 
     def splice(self, keep) -> tuple["TreeSkeleton", np.ndarray]:
         """The nodes selected by ``keep``, each hung, where it is, from its nearest selected ancestor
